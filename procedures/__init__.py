@@ -1,0 +1,1 @@
+"""Lab procedures: one module per procedure (a sequence plus its analysis)."""

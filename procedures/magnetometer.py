@@ -1,0 +1,133 @@
+"""Magnetometer calibration on the turntable: yaw sweeps at the fixture's tilts.
+
+Sequence: for every tilt of the fixture (``tilts_deg``: [roll, pitch] pairs in degrees,
+applied to the level z-down mount), either ``yaw_steps`` static holds evenly spaced over
+360° (``mode="steps"``, ``dwell_s`` each) or one continuous revolution at ``rate_dps``
+(``mode="continuous"``). The default fixture tilts ±30° about x and y; a level fixture
+(``[[0, 0]]``) supports only the 2D method.
+
+Analysis (``workbench analyze magnetometer SESSION_DIR``): the fit points from the session
+(static means, ≤1° blocks of rotation), the estimator chosen automatically with its reason
+(or ``method``), hard iron, soft iron, field norm, dip, declination, mag-to-IMU rotation and
+heading error against the table azimuth (:mod:`workbench.analysis.magnetometer`). Options:
+``field_norm_ut`` (the site's field, fixes the scale of I+M), ``declination_deg``,
+``accel_calibration`` (a calibration JSON whose ``accel`` block compensates the accelerometer
+used for the gravity direction), ``method``, ``robust``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from workbench import units
+from workbench.analysis.magnetometer import calibrate, points_from_session, triad_calibration
+from workbench.calset import CalibrationSet
+from workbench.errors import AnalysisError, ProcedureError
+from workbench.procedure import ProcedureResult
+from workbench.sequence import Hold, Rotate, Sequence, mount_from_euler
+from workbench.session import Session
+
+NAME = "magnetometer"
+TITLE = "Magnetometer hard/soft iron and heading (yaw sweeps at fixture tilts)"
+TRIADS = ("mag", "accel")
+CAMPAIGN_ORDER = 50
+DEFAULTS = {
+    "tilts_deg": [[0.0, 0.0], [30.0, 0.0], [-30.0, 0.0], [0.0, 30.0], [0.0, -30.0]],
+    "mode": "steps",
+    "yaw_steps": 12,
+    "dwell_s": 5.0,
+    "rate_dps": 10.0,
+    "method": "auto",
+    "robust": False,
+    "field_norm_ut": None,
+    "declination_deg": None,
+    "accel_calibration": None,
+}
+_SEQUENCE_KEYS = ("tilts_deg", "mode", "yaw_steps", "dwell_s", "rate_dps")
+_ANALYSIS_KEYS = ("method", "robust", "field_norm_ut", "declination_deg", "accel_calibration")
+
+
+def _options(options: dict, keys: tuple[str, ...]) -> dict:
+    unknown = set(options) - set(DEFAULTS)
+    if unknown:
+        raise ProcedureError(f"{NAME}: unknown option(s) {', '.join(sorted(unknown))} "
+                             f"(known: {', '.join(DEFAULTS)})")
+    return {k: options.get(k, DEFAULTS[k]) for k in keys}
+
+
+def sequence(spec, **options) -> Sequence:
+    """Yaw sweeps (static steps or one continuous revolution) at each fixture tilt."""
+    o = _options(options, _SEQUENCE_KEYS)
+    if getattr(spec, "mag", None) is None:
+        raise ProcedureError(f"{NAME}: the unit has no magnetometer")
+    if o["mode"] not in ("steps", "continuous"):
+        raise ProcedureError(f"{NAME}: mode {o['mode']!r} is not 'steps' or 'continuous'")
+    tilts = np.asarray(o["tilts_deg"], float).reshape(-1, 2)
+    steps: list = []
+    for roll, pitch in tilts:
+        mount = mount_from_euler("xy", [roll, pitch])
+        label = f"tilt roll {roll:g}° pitch {pitch:g}°"
+        if o["mode"] == "steps":
+            n = int(o["yaw_steps"])
+            if n < 3:
+                raise ProcedureError(f"{NAME}: yaw_steps {n} < 3")
+            steps += [Hold(mount, float(a), float(o["dwell_s"]), label) for a in np.linspace(0, 2 * np.pi, n, endpoint=False)]
+        else:
+            steps += [Hold(mount, 0.0, float(o["dwell_s"]), label),
+                      Rotate(mount, float(np.radians(o["rate_dps"])), 1.0, label=label)]
+    return Sequence(NAME, steps, options={**o, "tilts_deg": tilts.tolist()})
+
+
+def analyze(session: Session, **options) -> ProcedureResult:
+    """Calibrate the magnetometer from a session of yaw sweeps (see the module docstring)."""
+    o = _options(options, _ANALYSIS_KEYS)
+    points = points_from_session(session)
+    decl = None if o["declination_deg"] is None else float(np.radians(o["declination_deg"]))
+    accel = None if o["accel_calibration"] is None else CalibrationSet.load(o["accel_calibration"]).model("accel")
+    cal = calibrate(points, method=str(o["method"]), robust=bool(o["robust"]),
+                    field_norm_ut=None if o["field_norm_ut"] is None else float(o["field_norm_ut"]),
+                    declination=decl, accel_model=accel, source=session.name)
+    fit = cal.fit
+    calset = CalibrationSet(unit=session.unit, triads={"mag": triad_calibration(fit)},
+                            notes={NAME: {"method": fit.method, "reason": cal.choice.reason}})
+    return ProcedureResult(NAME, result=cal.to_dict(), calibration=calset, payload=cal,
+                           summary=summary_lines(cal), warnings=list(cal.warnings))
+
+
+def summary_lines(cal) -> list[str]:
+    """Lines for people, in lab units (µT, %, °)."""
+    fit = cal.fit
+
+    def pm(v, s, unit, digits=3):
+        return f"{units.fmt(v, unit, digits)} ± {units.fmt(s, unit, 2)}"
+
+    off = fit.soft_iron - np.eye(3)
+    lines = [f"method: {fit.method} ({cal.choice.reason})",
+             "hard iron: " + ", ".join(f"{a} {pm(v, s, 'uT')}" for a, v, s in zip("xyz", fit.bias, fit.bias_sigma)),
+             f"soft iron: largest |I+M - I| element {np.abs(off).max() * 100:.3g} %, "
+             f"largest sigma {units.fmt(np.nanmax(fit.soft_iron_sigma) if np.isfinite(fit.soft_iron_sigma).any() else np.nan, '%', 2)}",
+             f"field norm: {pm(fit.field_norm_ut, fit.field_norm_sigma, 'uT', 4)} (scale fixed by {fit.scale_fixed_by})",
+             f"coverage {cal.quality.coverage:.0%} of the sphere, field-norm residual RMS "
+             f"{units.fmt(cal.quality.norm_residual_rms_ut, 'uT', 3)}"]
+    if fit.dip is not None:
+        lines.append(f"dip: {pm(fit.dip, fit.dip_sigma, 'deg', 5)}")
+    if fit.declination is not None:
+        lines.append(f"declination from the reference x axis: {pm(fit.declination, fit.declination_sigma, 'deg', 4)}")
+    if fit.alignment is not None:
+        lines.append("IMU-to-mag rotation: " + ", ".join(
+            f"{a} {pm(v, s, 'mrad')}" for a, v, s in zip("xyz", fit.alignment, fit.alignment_sigma)))
+    if cal.heading is not None:
+        lines.append(f"heading error vs table (tilt from {cal.heading.tilt_source}): RMS {np.degrees(cal.heading.rms):.3g}° "
+                     f"(uncalibrated {np.degrees(cal.raw_heading.rms):.3g}°"
+                     + (f", plain algebraic fit {np.degrees(cal.baseline_heading.rms):.3g}°"
+                        if cal.baseline_heading is not None else "") + ")")
+    return lines
+
+
+def figures(result: ProcedureResult) -> dict:
+    """Point cloud (raw vs calibrated) and heading error vs table azimuth (paper 004 Fig. 15)."""
+    from workbench.plots.magnetometer import plot_cloud, plot_heading_error
+
+    if result.payload is None:
+        raise AnalysisError(f"{NAME}: the result carries no fit to draw (payload missing)")
+    return {"mag_cloud": plot_cloud(result.payload), "mag_heading_error": plot_heading_error(result.payload)}

@@ -1,0 +1,112 @@
+"""Thermal sweep: bias and scale factor of the gyro and accelerometer against temperature.
+
+Two chamber profiles:
+
+* ``profile="soak"``: setpoints from ``t_min_c`` to ``t_max_c`` in ``step_c`` steps (and back
+  down when ``return_sweep``), each held until the unit's own temperature settles (the rig
+  ends a Soak step on the unit thermometer), then a six-position static set (``dwell_s`` each)
+  and, with ``rate_dps``, rotations at ±rate about three axes for the gyro scale factor.
+* ``profile="ramp"``: a soak at ``t_min_c``, a continuous ramp at ``ramp_c_per_min`` to
+  ``t_max_c`` (and back when ``return_sweep``), the unit static (``mount``) or indexing
+  through the six positions every ``ramp_dwell_s``.
+
+Analysis: :func:`workbench.analysis.thermal.analyze_thermal` (per-soak turntable fits, or a
+direct fit of bias against the unit temperature for ramps; cross-validated polynomial order;
+hysteresis). Product: a calibration set with the ``thermal`` block (t_ref ``t_ref_c``).
+The default profile is short (five soaks, -10..50 °C, up only) so it fits in a campaign;
+use ``t_min_c=-40, t_max_c=85, step_c=15, return_sweep=True`` for a full qualification sweep.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from workbench.analysis.thermal import analyze_thermal, to_calibration
+from workbench.errors import RigLimitError
+from workbench.procedure import ProcedureResult
+from workbench.sequence import Hold, Ramp, Rotate, Sequence, Soak, with_options
+from workbench.units import to_unit
+
+NAME = "thermal"
+TITLE = "Thermal sweep (chamber soaks or ramps): bias and scale factor vs temperature"
+TRIADS = ("accel", "gyro")
+CAMPAIGN_ORDER = 40
+DEFAULTS = {
+    "profile": "soak", "t_min_c": -10.0, "t_max_c": 50.0, "step_c": 15.0, "return_sweep": False,
+    "dwell_s": 10.0, "rate_dps": None, "ramp_c_per_min": 1.0, "ramp_dwell_s": None, "mount": "z-down",
+    "settle_tol_c_per_min": 0.05, "settle_window_s": 120.0,
+    "t_ref_c": 25.0, "max_order": 5, "order": None, "hysteresis": "auto", "ramp_window_s": 60.0,
+}
+SIX = ("z-down", "z-up", "x-up", "x-down", "y-up", "y-down")
+RATE_MOUNTS = ("z-down", "x-up", "y-up")
+_ANALYSIS_KEYS = ("t_ref_c", "max_order", "order", "hysteresis", "settle_tol_c_per_min", "settle_window_s",
+                  "ramp_window_s")
+
+
+def setpoints(t_min_c: float, t_max_c: float, step_c: float, return_sweep: bool) -> list[float]:
+    """Soak setpoints (°C): ``t_min_c`` up by ``step_c`` to ``t_max_c`` (included), then back down."""
+    if not (step_c > 0 and t_max_c > t_min_c):
+        raise RigLimitError(f"{NAME}: need t_max_c > t_min_c and step_c > 0 (got {t_min_c}, {t_max_c}, {step_c})")
+    up = list(np.arange(t_min_c, t_max_c + 1e-9, step_c))
+    if t_max_c - up[-1] > 1e-9:
+        up.append(t_max_c)
+    up = [float(t) for t in up]
+    return up + up[-2::-1] if return_sweep else up
+
+
+def sequence(spec, profile: str = "soak", t_min_c: float = -10.0, t_max_c: float = 50.0, step_c: float = 15.0,
+             return_sweep: bool = False, dwell_s: float = 10.0, rate_dps: float | None = None,
+             ramp_c_per_min: float = 1.0, ramp_dwell_s: float | None = None, mount="z-down",
+             settle_tol_c_per_min: float = 0.05, settle_window_s: float = 120.0, **_analysis_options) -> Sequence:
+    """The chamber profile (see the module docstring); soaks may last up to 12 thermal time constants."""
+    tau = float(getattr(spec, "thermal_time_constant_s", 600.0) or 600.0)
+    max_s = max(4 * 3600.0, 12 * tau)
+    steps: list = []
+    if profile == "soak":
+        for temp in setpoints(t_min_c, t_max_c, step_c, return_sweep):
+            steps.append(Soak(temp, mount, 0.0, settle_tol_c_per_min, settle_window_s, max_s, f"soak {temp:g} °C"))
+            steps += [Hold(m, 0.0, dwell_s, f"{temp:g} °C {m}") for m in SIX]
+            if rate_dps:
+                rate = np.radians(rate_dps)
+                steps += [Rotate(m, sgn * rate, 1.0, None, f"{temp:g} °C {m} {sgn * rate_dps:+g} °/s")
+                          for m in RATE_MOUNTS for sgn in (1, -1)]
+    elif profile == "ramp":
+        positions = [[m, 0.0] for m in SIX] if ramp_dwell_s else None
+        steps.append(Soak(t_min_c, mount, 0.0, settle_tol_c_per_min, settle_window_s, max_s, f"soak {t_min_c:g} °C"))
+        steps.append(Ramp(t_max_c, ramp_c_per_min, mount, 0.0, positions, ramp_dwell_s, "ramp up"))
+        if return_sweep:
+            steps.append(Ramp(t_min_c, ramp_c_per_min, mount, 0.0, positions, ramp_dwell_s, "ramp down"))
+    else:
+        raise RigLimitError(f"{NAME}: profile {profile!r} is not 'soak' or 'ramp'")
+    return with_options(Sequence(NAME, steps), profile=profile, t_min_c=t_min_c, t_max_c=t_max_c, step_c=step_c,
+                        return_sweep=return_sweep, dwell_s=dwell_s, rate_dps=rate_dps,
+                        ramp_c_per_min=ramp_c_per_min, ramp_dwell_s=ramp_dwell_s)
+
+
+def _summary(result) -> list[str]:
+    lines = [f"thermal ({result.source}): {result.t_min_c:.1f}..{result.t_max_c:.1f} °C, t_ref {result.t_ref_c:g} °C"]
+    for q, f in result.fits.items():
+        unit = "ppm" if q.endswith("scale") else ("deg/s" if q.startswith("gyro") else "mg")
+        rms = ", ".join(f"{v:.3g}" for v in to_unit(f.cv_rms_chosen, unit))
+        line = f"{q}: order {f.order}, held-out RMS [{rms}] {unit}"
+        if np.isfinite(f.hysteresis).any():
+            h = ", ".join(f"{a:.3g}±{b:.2g}" for a, b in zip(to_unit(f.hysteresis, unit),
+                                                             to_unit(f.hysteresis_sigma, unit)))
+            line += f"; hysteresis (up - down) [{h}] {unit}" + (" (modelled)" if f.hysteresis_modelled.any() else "")
+        lines.append(line)
+    return lines
+
+
+def analyze(session, **options) -> ProcedureResult:
+    """Thermal analysis of a soak or ramp session -> calibration set with the thermal block."""
+    opts = {**DEFAULTS, **options}
+    result = analyze_thermal(session, **{k: opts[k] for k in _ANALYSIS_KEYS})
+    return ProcedureResult(NAME, result.to_dict(), to_calibration(result, session.unit), result,
+                           _summary(result), list(result.warnings))
+
+
+def figures(result: ProcedureResult) -> dict:
+    """Bias and scale factor vs temperature with the fits, and the residuals after compensation."""
+    from workbench.plots.thermal import thermal_figures
+
+    return thermal_figures(result.payload)

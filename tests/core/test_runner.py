@@ -1,0 +1,48 @@
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from workbench.session import load_session
+
+RECORD = """
+import sys, types, numpy as np
+from pathlib import Path
+from workbench.grades import load_spec, draw_unit
+from workbench.jobs import record_procedure
+from workbench.rigconfig import load_rig_config
+from workbench.sequence import Hold, Index, Sequence
+proc = types.SimpleNamespace(NAME="demo", TRIADS=("gyro", "accel"), DEFAULTS={},
+    sequence=lambda spec: Sequence("demo", [Hold("z-down", dwell_s=20.0), Index(np.pi, 20.0)] * 6))
+spec = load_spec("industrial_mems")
+record_procedure(proc, spec, draw_unit(spec, 5), load_rig_config("sim"), 5, Path(sys.argv[1]))
+"""
+
+
+def test_killed_run_leaves_completed_steps_readable_and_resumes(tmp_path):
+    out = tmp_path / "session"
+    env = {**os.environ, "PYTHONPATH": os.getcwd()}
+    p = subprocess.Popen([sys.executable, "-c", RECORD, str(out)], env=env)
+    deadline = time.time() + 120
+    while time.time() < deadline and len(list((out / "parts").glob("step_*.parquet"))) < 4:
+        time.sleep(0.05)
+    p.send_signal(signal.SIGKILL)
+    p.wait()
+    manifest = json.loads((out / "session.json").read_text())
+    if manifest.get("complete"):
+        pytest.skip("the recording finished before it could be killed")
+    done = len(manifest["steps"])
+    assert done >= 4
+    partial = load_session(out, require_complete=False)
+    assert len(partial.steps) == done and partial.samples["step"].max() == done - 1
+    from workbench.jobs import resume_procedure
+
+    session = resume_procedure(out)
+    assert len(session.steps) == 18 and json.loads((out / "session.json").read_text())["complete"]
+    assert not (out / "parts").exists()
+    t = session.samples["t"].to_numpy()
+    assert (t[1:] > t[:-1]).all()  # time continues across the resume

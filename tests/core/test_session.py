@@ -1,0 +1,76 @@
+import json
+import shutil
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from workbench.errors import SessionError
+from workbench.sequence import Hold, Sequence
+from workbench.session import load_session
+from workbench.sim import simulate
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory):
+    d = tmp_path_factory.mktemp("s") / "session"
+    simulate(Sequence("two", [Hold("z-down", dwell_s=5.0), Hold("x-up", dwell_s=5.0)]), "industrial_mems", 1, d)
+    return d
+
+
+def _copy(recorded, tmp_path, edit_samples=None, edit_manifest=None, csv=False):
+    d = tmp_path / "copy"
+    shutil.copytree(recorded, d)
+    df = pd.read_parquet(d / "samples.parquet")
+    if edit_samples:
+        df = edit_samples(df)
+    (d / "samples.parquet").unlink()
+    if csv:
+        df.to_csv(d / "samples.csv", index=False)
+    else:
+        df.to_parquet(d / "samples.parquet")
+    if edit_manifest:
+        m = json.loads((d / "session.json").read_text())
+        edit_manifest(m)
+        (d / "session.json").write_text(json.dumps(m))
+    return d
+
+
+def test_round_trip_and_csv_accepted(recorded, tmp_path):
+    s = load_session(recorded)
+    assert [st.kind for st in s.steps] == ["static", "static"]
+    assert (recorded / "truth.json").exists()
+    c = load_session(_copy(recorded, tmp_path, csv=True))
+    assert np.allclose(c.samples[["gx", "ax"]].to_numpy(), s.samples[["gx", "ax"]].to_numpy())
+
+
+def _set(df, col, row, value):
+    df.loc[row, col] = value
+    return df
+
+
+@pytest.mark.parametrize("edit,match", [
+    (lambda df: _set(df, "gx", 100, np.nan), "column gx: NaN .* row 100"),
+    (lambda df: df.drop(index=range(200, 260)).reset_index(drop=True), "column t: gap"),
+    (lambda df: _set(df, "t", 50, df["t"][49]), "column t: duplicate or non-increasing .* row 50"),
+    (lambda df: df.drop(columns=["az"]), "missing column.* az"),
+    (lambda df: df.assign(ax=df.ax / 9.80665, ay=df.ay / 9.80665, az=df.az / 9.80665), "not m/s\\^2"),
+    (lambda df: df.assign(gx=np.degrees(df.gx) + 100.0), "not rad/s"),
+    (lambda df: _set(df, "step", 10, 7), "label.*7.* match no step"),
+])
+def test_bad_samples_get_errors_naming_the_column(recorded, tmp_path, edit, match):
+    with pytest.raises(SessionError, match=match) as exc:
+        load_session(_copy(recorded, tmp_path, edit_samples=edit))
+    assert "samples.parquet" in str(exc.value)
+
+
+@pytest.mark.parametrize("edit,match", [
+    (lambda m: m["steps"][1].__setitem__("t_start", m["steps"][0]["t_end"] - 1.0), "step 1 overlaps step 0"),
+    (lambda m: m["steps"][1].__setitem__("t_end", m["steps"][1]["t_end"] + 100.0), "step 1.*outside"),
+    (lambda m: m["site"].pop("latitude_deg"), "latitude_deg"),
+    (lambda m: m["steps"][0].__setitem__("kind", "wobble"), "step 0: unknown kind 'wobble'"),
+    (lambda m: m.__setitem__("format", "other/1"), "format"),
+])
+def test_bad_manifests(recorded, tmp_path, edit, match):
+    with pytest.raises(SessionError, match=match):
+        load_session(_copy(recorded, tmp_path, edit_manifest=edit))

@@ -1,0 +1,207 @@
+"""AppTest checks of the general dashboard pages: widgets, the calibration-set workflow, error paths."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from streamlit.testing.v1 import AppTest
+
+REPO = Path(__file__).resolve().parents[2]
+PAGES = REPO / "dashboard" / "pages"
+TIMEOUT = 60  # s per script run (first imports of pandas/matplotlib on a loaded 2-core box)
+
+
+def page(name: str) -> AppTest:
+    at = AppTest.from_file(str(PAGES / name), default_timeout=TIMEOUT)
+    return at.run()
+
+
+def texts(at: AppTest, kind: str) -> list[str]:
+    return [e.value for e in getattr(at, kind)]
+
+
+def test_app_discovers_pages_in_prefix_order():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("dash_app", REPO / "app.py")
+    source = (REPO / "app.py").read_text().replace("\nmain()\n", "\n")  # the discovery only, no Streamlit run
+    mod = importlib.util.module_from_spec(spec)
+    exec(compile(source, str(REPO / "app.py"), "exec"), mod.__dict__)
+    found = mod.discover()
+    orders = [o for o, *_ in found]
+    assert orders == sorted(orders)
+    titles = {name: title for _, name, title, _ in found}
+    assert titles["overview"] == "Overview" and titles["calibration_sets"] == "Calibration sets"
+
+
+def test_app_runs_and_shows_overview(seeded_db):
+    at = AppTest.from_file(str(REPO / "app.py"), default_timeout=TIMEOUT).run()
+    assert not at.exception
+    assert "Calibration workbench" in texts(at, "title")
+    assert [m.value for m in at.metric][:2] == ["1", "2"]  # one unit, two sets
+
+
+def test_overview_store_error_is_readable(tmp_path, monkeypatch):
+    monkeypatch.setenv("WORKBENCH_DB", f"sqlite:///{tmp_path}/missing/dir/wb.db")
+    at = page("10_overview.py")
+    assert not at.exception
+    assert any("does not exist" in e for e in texts(at, "error"))
+
+
+def test_calibration_sets_show_diff_and_approve(seeded_db):
+    at = page("95_calibration_sets.py")
+    assert not at.exception
+    assert at.selectbox(key="cal.unit").value == "DASH-001"
+    assert at.selectbox(key="cal.version").value == 2  # newest first
+    # the z bias sigma is NaN in the set: shown as not observed, never as zero
+    coeffs = at.dataframe[1].value
+    z_bias = coeffs[(coeffs.field == "bias") & (coeffs["index"] == "[2]")]
+    assert z_bias.sigma.iloc[0] == "not observed"
+    # diff: only gyro bias x changed, by 3e-6 / sqrt(2 * 1e-6^2) = 2.121 sigma
+    diff = at.dataframe[-1].value
+    bias_rows = diff[diff.field == "bias"]
+    assert len(bias_rows) == 1 and bias_rows["change (σ)"].iloc[0] == pytest.approx(3 / 2 ** 0.5, rel=1e-9)
+    # approve needs a name; then the store records it and the page says so
+    assert at.button(key="cal.approve").disabled
+    at.text_input(key="cal.by").input("lab-lead").run()
+    at.button(key="cal.approve").click().run()
+    assert not at.exception
+    assert seeded_db.list_sets()[0].approved_by == "lab-lead"
+    assert any("Approved by lab-lead" in s for s in texts(at, "success"))
+
+
+def test_calibration_sets_download_every_format(seeded_db):
+    from workbench import registry
+
+    at = page("95_calibration_sets.py")
+    assert not at.exception
+    buttons = [e for e in at.get("download_button")]
+    assert len(buttons) == len(registry.exporters()) > 0
+    assert not at.error
+
+
+def test_calibration_sets_empty_store(tmp_path, monkeypatch):
+    monkeypatch.setenv("WORKBENCH_DB", f"sqlite:///{tmp_path / 'empty.db'}")
+    at = page("95_calibration_sets.py")
+    assert not at.exception
+    assert any("No units" in i for i in texts(at, "info"))
+
+
+# -- Run page: a fake procedure and a fake `workbench run` (tests/dashboard/fake_workbench.py) ------------
+def _fake_procedure(name: str, broken_sequence: bool = False):
+    from types import SimpleNamespace
+
+    from workbench.errors import RigLimitError
+    from workbench.sequence import Hold, Sequence
+
+    def sequence(spec, dwell_s=10.0):
+        if broken_sequence:
+            raise RigLimitError("sequence broken: Rotate rate 20 rad/s exceeds the table limit 10 rad/s")
+        return Sequence(name, [Hold("z-down", 0.0, dwell_s), Hold("x-up", 0.0, dwell_s), Hold("y-up", 0.0, dwell_s)])
+
+    return SimpleNamespace(NAME=name, TITLE=f"fake {name}", TRIADS=("gyro",), DEFAULTS={"dwell_s": 10.0},
+                           sequence=sequence, analyze=None, figures=lambda r: {})
+
+
+@pytest.fixture
+def fake_run(seeded_db, tmp_path, monkeypatch):
+    """Procedures ``ok``, ``fails`` (fails mid-run) and ``broken`` (bad sequence); one grade; the fake CLI."""
+    import sys
+
+    from dashboard import common
+    from workbench import registry
+
+    procs = {"ok": _fake_procedure("ok"), "fails": _fake_procedure("fails"),
+             "broken": _fake_procedure("broken", broken_sequence=True)}
+    monkeypatch.setattr(registry, "procedures", lambda: procs)
+    grades = tmp_path / "grades"
+    grades.mkdir()
+    (grades / "test_grade.yaml").write_text("name: test_grade\n")
+    monkeypatch.setattr(common, "UNITS_DIR", grades)
+    monkeypatch.setattr(common, "load_spec", lambda path: None)
+    monkeypatch.setattr(common, "_workbench_cli", lambda: [sys.executable, str(Path(__file__).with_name(
+        "fake_workbench.py"))])
+    return procs
+
+
+def _wait_for_end(folder: Path, timeout_s: float = 30.0) -> None:
+    import time
+
+    from dashboard import common
+
+    t0 = time.monotonic()
+    while (folder / common.EXIT_FILE).exists() is False and time.monotonic() - t0 < timeout_s:
+        time.sleep(0.1)
+    assert (folder / common.EXIT_FILE).exists(), f"fake run in {folder} did not end in {timeout_s} s"
+
+
+def test_run_page_previews_sequence_and_runs(fake_run):
+    at = page("20_run.py")
+    assert not at.exception
+    at.selectbox(key="run.procedure").select("ok").run()
+    # preview: 3 steps of 10 s = 30 s of rig time, shown before anything starts
+    assert [m.value for m in at.metric][:2] == ["3", "30 s"]
+    at.number_input(key="run.options.ok.dwell_s").set_value(20.0).run()
+    assert [m.value for m in at.metric][:2] == ["3", "1 min 00 s"]
+    at.button(key="run.start").click().run()
+    assert not at.exception
+    folder = Path(at.session_state["run.folder"])
+    _wait_for_end(folder)
+    at.run()
+    assert not at.exception and not at.error
+    assert any("finished: 3 steps recorded" in s for s in texts(at, "success"))
+    assert any("fake warning" in w for w in texts(at, "warning"))
+    job = __import__("json").loads((folder / "job.json").read_text())
+    assert job["options"] == {"dwell_s": 20.0} and "--option" in job["command"]
+
+
+def test_run_page_run_failing_mid_run_shows_log_and_stores_nothing(fake_run, seeded_db):
+    at = page("20_run.py")
+    at.selectbox(key="run.procedure").select("fails").run()
+    at.button(key="run.start").click().run()
+    folder = Path(at.session_state["run.folder"])
+    _wait_for_end(folder)
+    at.run()
+    assert not at.exception
+    assert any("failed (exit code 2)" in e for e in texts(at, "error"))
+    assert any("is not static" in c.value for c in at.code)
+    assert len(seeded_db.list_sets()) == 2 and seeded_db.list_sessions() == []
+
+
+def test_run_page_bad_sequence_is_a_readable_error(fake_run):
+    at = page("20_run.py")
+    at.selectbox(key="run.procedure").select("broken").run()
+    assert not at.exception
+    assert any("exceeds the table limit" in e for e in texts(at, "error"))
+    assert not [b for b in at.button if b.key == "run.start"]  # nothing to start
+
+
+def test_run_status_progress_while_running(fake_run):
+    import time
+
+    from dashboard import common
+
+    folder = common.start_run("ok", next(iter(common.unit_grades().values())), seed=3)
+    seen = []
+    while not (folder / common.EXIT_FILE).exists():
+        s = common.run_status(folder)
+        seen.append((s.state, s.progress))
+        time.sleep(0.05)
+    final = common.run_status(folder)
+    assert final.state == "done" and final.progress == 1.0 and final.steps_done == 3
+    # progress while running is the recorded share of the planned rig time: 0, 1/3, 2/3, or 0.99 once
+    # every step is recorded but the process (the analysis) has not ended
+    running = {round(p, 3) for st_, p in seen if st_ == "running" and p is not None}
+    assert running <= {0.0, 0.333, 0.667, 0.99} and running & {0.333, 0.667}
+    parts = common.partial_samples(final.session_dir)
+    assert parts is None or len(parts) > 0
+
+
+def test_no_procedures_installed(seeded_db, monkeypatch):
+    from workbench import registry
+
+    monkeypatch.setattr(registry, "procedures", lambda: {})
+    at = page("20_run.py")
+    assert not at.exception
+    assert any("No procedures" in i for i in texts(at, "info"))

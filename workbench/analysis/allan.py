@@ -1,0 +1,336 @@
+"""Overlapping Allan, modified Allan and overlapping Hadamard deviations of rate data.
+
+Rate samples ``y`` (N, C) (gyro rad/s, accel m/s^2; all axes at once) at a constant rate are
+integrated once into a phase ``x`` (angle rad / velocity m/s) exactly as allantools does
+(``x_0 = 0``, ``x_k = dt * cumsum(y - mean(y))``, so ``L = N + 1`` phase points), and every
+deviation is a sum of squared finite differences of ``x`` at lag ``m`` (tau = m dt):
+
+* overlapping ADEV  sigma^2 = sum_i (x[i+2m] - 2 x[i+m] + x[i])^2 / (2 tau^2 (L - 2m))
+* overlapping HDEV  sigma^2 = sum_i (x[i+3m] - 3 x[i+2m] + 3 x[i+m] - x[i])^2 / (6 tau^2 (L - 3m))
+* modified ADEV     sigma^2 = sum_j (sum_{i=j}^{j+m-1} x[i+2m] - 2x[i+m] + x[i])^2 / (2 m^2 tau^2 (L - 3m + 1))
+
+(NIST SP 1065 eq. 11, 18, 14.) The sums run in compiled kernels (numba) over the phase in
+cache-sized blocks, all lags per block, without temporaries the size of the record; the
+results equal allantools' ``oadev``/``ohdev``/``mdev`` (tested to a relative 1e-9).
+
+Public: :func:`deviation`, :func:`averaging_factors`, :func:`phase`, :func:`prepare_rate_data`,
+:class:`DeviationCurve`, :data:`KINDS`.
+References: thesis (shared/seeds/000_...) sec. 1.2 (Allan variance analysis of tables 1.1-4.1);
+IEEE Std 952-1997 Annex C; NIST SP 1065.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from workbench.errors import AnalysisError
+
+KINDS = ("oadev", "mdev", "ohdev")
+ORDER = {"oadev": 2, "ohdev": 3, "mdev": 3}  # lag multiples a deviation spans
+MIN_SAMPLES = 100
+GAP_POLICIES = ("error", "longest", "split")
+_BLOCK = 4096  # phase points per cache block (x 8 bytes x up to 4 lag windows: fits L2)
+
+
+@dataclass(frozen=True)
+class DeviationCurve:
+    """A deviation versus averaging time, one column per input channel.
+
+    ``tau`` (K,) s; ``m`` (K,) averaging factors (tau = m / rate); ``dev`` (K, C) in the input's
+    rate unit (rad/s or m/s^2); ``n`` (K,) number of squared differences summed (pooled over
+    segments); ``n_samples`` rate samples used; ``kind`` one of :data:`KINDS`.
+    """
+
+    kind: str
+    tau: np.ndarray
+    m: np.ndarray
+    dev: np.ndarray
+    n: np.ndarray
+    rate: float
+    n_samples: int
+    columns: tuple[str, ...]
+
+    @property
+    def avar(self) -> np.ndarray:
+        """The variance (dev squared), (K, C)."""
+        return self.dev ** 2
+
+
+# -- tau grids ----------------------------------------------------------------------------
+
+def averaging_factors(n_phase: int, taus: str | np.ndarray, rate: float, kind: str = "oadev") -> np.ndarray:
+    """Averaging factors m (int64, sorted, unique) for a record of ``n_phase`` phase points.
+
+    ``taus``: ``"octave"`` (1, 2, 4, ... as allantools), ``"decade"`` (1, 2, 4, 10, 20, 40, ...
+    as allantools / Stable32), ``"<k>-per-decade"`` (k log-spaced points per decade), or an
+    array of taus in s (rounded to multiples of 1/rate). Factors leaving fewer than two
+    differences for ``kind`` are dropped, as allantools does.
+    """
+    if isinstance(taus, str):
+        if taus == "octave":
+            top = int(np.floor(np.log2(n_phase)))
+            tau_s = np.logspace(0, top, top + 1, base=2.0) / rate
+        elif taus == "decade":
+            top = int(np.floor(np.log10(n_phase)))
+            tau_s = np.array([f * 10.0 ** k / rate for k in range(top + 1) for f in (1.0, 2.0, 4.0)])
+        else:
+            match = re.fullmatch(r"(\d+)-per-decade", taus)
+            if not match or int(match.group(1)) < 1:
+                raise AnalysisError(f"taus {taus!r}: expected octave, decade or <k>-per-decade (e.g. 10-per-decade)")
+            per = int(match.group(1))
+            top = np.log10(n_phase)
+            tau_s = np.logspace(0, top, int(np.ceil(per * top)) + 1) / rate
+    else:
+        tau_s = np.asarray(taus, float).ravel()
+    m = np.round(tau_s * rate)
+    m = np.unique(m[(m > 0) & (m < n_phase)]).astype(np.int64)
+    n = _n_terms(kind, n_phase, m)
+    return m[n > 1]
+
+
+def _n_terms(kind: str, n_phase: int, m: np.ndarray) -> np.ndarray:
+    """Number of squared differences the estimator sums at each m."""
+    return n_phase - ORDER[kind] * m + (1 if kind == "mdev" else 0)
+
+
+# -- input checks -------------------------------------------------------------------------
+
+def prepare_rate_data(y: np.ndarray, columns: tuple[str, ...] | list[str], source: str = "data",
+                      gap_policy: str = "error", quantity: str | None = None) -> tuple[list[np.ndarray], list[str]]:
+    """Check rate samples and cut them into NaN-free segments according to ``gap_policy``.
+
+    ``y`` (N, C) SI rate samples. Non-finite samples are gaps: ``"error"`` raises naming the
+    column and rows, ``"longest"`` keeps the longest gap-free run, ``"split"`` keeps every run
+    (deviations then pool the differences of all runs; none spans a gap). ``quantity``
+    (``"gyro"``/``"accel"``) enables the plausibility check of magnitudes (wrong declared unit).
+    Returns the list of (n_k, C) segments and warnings.
+    """
+    y = np.asarray(y, float)
+    if y.ndim == 1:
+        y = y[:, None]
+    if y.ndim != 2 or y.shape[1] != len(columns):
+        raise AnalysisError(f"{source}: samples of shape {y.shape} do not match columns {', '.join(columns)}")
+    if gap_policy not in GAP_POLICIES:
+        raise AnalysisError(f"{source}: gap policy {gap_policy!r} is not one of {', '.join(GAP_POLICIES)}")
+    bad_rows = np.zeros(len(y), bool) if np.isfinite(y.sum()) else ~np.all(np.isfinite(y), axis=1)
+    warnings: list[str] = []
+    if bad_rows.any():
+        runs = _runs(bad_rows)
+        col = columns[int(np.argmax(~np.isfinite(y[int(np.argmax(bad_rows))])))]
+        where = ", ".join(f"rows {a}-{b - 1}" if b - a > 1 else f"row {a}" for a, b in runs[:5])
+        more = f" and {len(runs) - 5} more" if len(runs) > 5 else ""
+        msg = f"{source}: column {col}: {int(bad_rows.sum())} NaN/missing sample(s) in {len(runs)} gap(s) at {where}{more}"
+        if gap_policy == "error":
+            raise AnalysisError(msg + " (choose a gap policy: longest or split)")
+        warnings.append(msg + f" (gap policy {gap_policy})")
+    segments = [y[a:b] for a, b in _runs(~bad_rows)] if bad_rows.any() else [y]
+    if gap_policy == "longest" and segments:
+        segments = [max(segments, key=len)]
+    segments = [s for s in segments if len(s) >= MIN_SAMPLES] if gap_policy == "split" else segments
+    total = sum(len(s) for s in segments)
+    if total < MIN_SAMPLES:
+        raise AnalysisError(f"{source}: {total} usable samples; Allan statistics need at least {MIN_SAMPLES}")
+    if quantity is not None:
+        _check_magnitude(np.concatenate(segments[:1])[:100_000], columns, source, quantity)
+    return segments, warnings
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """(start, stop) of the runs of True in a boolean vector."""
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], mask.view(np.int8), [0]))))
+    return list(zip(edges[::2].tolist(), edges[1::2].tolist()))
+
+
+def _check_magnitude(y: np.ndarray, columns, source: str, quantity: str) -> None:
+    """A static record's mean rate beyond any sensor's bias means a wrong declared unit."""
+    med = np.median(y, axis=0)
+    limit, unit, hint = {"gyro": (0.5, "rad/s", "deg/s declared as rad/s?"),
+                         "accel": (30.0, "m/s^2", "g or mg declared as m/s^2?")}[quantity]
+    worst = int(np.argmax(np.abs(med)))
+    if abs(med[worst]) > limit:
+        raise AnalysisError(f"{source}: column {columns[worst]}: median {med[worst]:.4g} {unit} is implausible "
+                            f"for a static {quantity} record ({hint})")
+    if quantity == "accel" and y.shape[1] == 3:
+        norm = float(np.median(np.linalg.norm(y, axis=1)))
+        if not 3.0 < norm < 30.0:
+            raise AnalysisError(f"{source}: columns {', '.join(columns)}: median |a| = {norm:.3g} m/s^2 "
+                                "is not gravity (g or mg declared as m/s^2?)")
+
+
+# -- phase and kernels --------------------------------------------------------------------
+
+def phase(y: np.ndarray, rate: float) -> np.ndarray:
+    """Phase (C, N+1) from rate samples (N, C): x_0 = 0, x_k = dt cumsum(y - mean) (allantools)."""
+    y = np.asarray(y, float)
+    x = np.empty((y.shape[1], y.shape[0] + 1))
+    x[:, 0] = 0.0
+    _integrate(y, column_sums(y) / len(y), 1.0 / float(rate), np.zeros(y.shape[1]), x[:, 1:])
+    return x
+
+
+@numba.njit(cache=True, nogil=True)
+def column_sums(y):  # pragma: no cover - compiled
+    """Column sums (C,) of y (N, C), accumulated in blocks (error ~ eps sqrt(N / block))."""
+    total = np.zeros(y.shape[1])
+    for b0 in range(0, y.shape[0], _BLOCK):
+        part = np.zeros(y.shape[1])
+        for k in range(b0, min(b0 + _BLOCK, y.shape[0])):
+            for c in range(y.shape[1]):
+                part[c] += y[k, c]
+        total += part
+    return total
+
+
+@numba.njit(cache=True, nogil=True)
+def _integrate(y, mean, dt, run, x):  # pragma: no cover - compiled
+    """x[c, k] = dt * (run[c] + sum_{i<=k} (y[i, c] - mean[c])), in one pass.
+
+    The running sum is kept unscaled and multiplied by dt per point, the order of operations
+    of ``cumsum(y - mean) * dt`` (allantools). ``run`` (C,) carries the unscaled running sum
+    from the previous chunk of a record (zeros for the first) and is updated in place.
+    """
+    n_ch = y.shape[1]
+    for k in range(y.shape[0]):
+        for c in range(n_ch):
+            run[c] += y[k, c] - mean[c]
+            x[c, k] = run[c] * dt
+
+
+@numba.njit(cache=True, nogil=True, fastmath=True, error_model="numpy", boundscheck=False)
+def _block_sum(x0, x1, x2, x3, order):  # pragma: no cover - compiled
+    """Sum of squared order-th differences of aligned windows x0..x3 (x[i], x[i+m], ...; x3 unused for order 2)."""
+    acc = 0.0
+    if order == 2:
+        for i in range(x0.shape[0]):
+            d = x2[i] - 2.0 * x1[i] + x0[i]
+            acc += d * d
+    else:
+        for i in range(x0.shape[0]):
+            d = x3[i] - 3.0 * x2[i] + 3.0 * x1[i] - x0[i]
+            acc += d * d
+    return acc
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy", boundscheck=False)
+def _diff_sums(x, lags, order, i0, i1, out):  # pragma: no cover - compiled
+    """out[j, c] += sum over i in [i0[j], i1[j]) of (order-th difference of x[c] at lag lags[j], at i)^2.
+
+    Channel by channel, the index range is walked in blocks of ``_BLOCK`` and every lag is
+    summed per block, so a phase window loaded for one lag (x[i+m] of lag m is x[i+2m] of
+    lag m/2) is reused from cache by the others.
+    """
+    lo = i0.min()
+    hi = i1.max()
+    for c in range(x.shape[0]):
+        xc = x[c]
+        for b0 in range(lo, hi, _BLOCK):
+            b1 = min(b0 + _BLOCK, hi)
+            for j in range(lags.shape[0]):
+                m = lags[j]
+                s0 = max(b0, i0[j])
+                s1 = min(b1, i1[j])
+                if s1 > s0:
+                    out[j, c] += _block_sum(xc[s0:s1], xc[s0 + m:s1 + m], xc[s0 + 2 * m:s1 + 2 * m],
+                                            xc[s0 + order * m:s1 + order * m], order)
+
+
+@numba.njit(cache=True, nogil=True)
+def _mdev_sums(x, lags, j0, j1, v0, run, out):  # pragma: no cover - compiled
+    """Modified-Allan sums as allantools' recursion, resumable across windows.
+
+    For lag m the inner sum at j is v_j = v0 + run_j, run_j = run_{j-1} + (x[j+3m-1] - 3x[j+2m-1]
+    + 3x[j+m-1] - x[j-1]); j runs over [j0[k], j1[k]) of the window (j = 0 is the first term,
+    v0 its value). ``v0``, ``run`` (K, C) carry the state; ``out`` (K, C) accumulates v_j^2.
+    """
+    n_ch = x.shape[0]
+    for k in range(lags.shape[0]):
+        m = lags[k]
+        for c in range(n_ch):
+            xc = x[c]
+            r = run[k, c]
+            base = v0[k, c]
+            acc = 0.0
+            block = 0.0
+            cnt = 0
+            for j in range(j0[k], j1[k]):
+                if j == 0:
+                    v = base
+                else:
+                    r += xc[j + 3 * m - 1] - 3.0 * xc[j + 2 * m - 1] + 3.0 * xc[j + m - 1] - xc[j - 1]
+                    v = base + r
+                block += v * v
+                cnt += 1
+                if cnt == _BLOCK:
+                    acc += block
+                    block = 0.0
+                    cnt = 0
+            run[k, c] = r
+            out[k, c] += acc + block
+
+
+def _mdev_start(x: np.ndarray, lags: np.ndarray) -> np.ndarray:
+    """First inner sum v_0 = sum_{i<m} x[i+2m] - 2x[i+m] + x[i], (K, C)."""
+    return np.array([[np.sum(xc[2 * m:3 * m] - 2 * xc[m:2 * m] + xc[:m]) for xc in x] for m in lags]).reshape(
+        len(lags), x.shape[0])
+
+
+def squared_sums(x: np.ndarray, lags: np.ndarray, kind: str) -> np.ndarray:
+    """Sums of squared differences (K, C) of the whole phase ``x`` (C, L) for ``kind``."""
+    lags = np.asarray(lags, np.int64)
+    out = np.zeros((len(lags), x.shape[0]))
+    if len(lags) == 0:
+        return out
+    n = _n_terms(kind, x.shape[1], lags)
+    if kind == "mdev":
+        v0 = _mdev_start(x, lags)
+        _mdev_sums(x, lags, np.zeros_like(lags), n.astype(np.int64), v0, np.zeros_like(v0), out)
+    else:
+        _diff_sums(x, lags, ORDER[kind], np.zeros_like(lags), np.maximum(n, 0).astype(np.int64), out)
+    return out
+
+
+def normalise(kind: str, sums: np.ndarray, n: np.ndarray, m: np.ndarray, rate: float) -> np.ndarray:
+    """Deviation (K, C) from pooled sums (K, C), term counts n (K,), factors m (K,)."""
+    tau = m / rate
+    denom = {"oadev": 2.0, "ohdev": 6.0, "mdev": 2.0}[kind] * tau ** 2 * n
+    if kind == "mdev":
+        denom = denom * m.astype(float) ** 2
+    return np.sqrt(sums / denom[:, None])
+
+
+# -- public entry point -------------------------------------------------------------------
+
+def deviation(y: np.ndarray, rate: float, kind: str = "oadev", taus: str | np.ndarray = "octave",
+              columns: tuple[str, ...] | list[str] | None = None, gap_policy: str = "error",
+              quantity: str | None = None, source: str = "data") -> DeviationCurve:
+    """Deviation ``kind`` (oadev | mdev | ohdev) of rate samples ``y`` (N,) or (N, C) at ``rate`` Hz.
+
+    ``y`` in SI (rad/s for gyros, m/s^2 for accels); the curve is in the same unit. ``taus`` as
+    :func:`averaging_factors`; ``gap_policy`` and ``quantity`` as :func:`prepare_rate_data`
+    (with ``"split"`` the differences of every gap-free run are pooled and the tau grid is
+    that of the longest run).
+    """
+    if kind not in KINDS:
+        raise AnalysisError(f"{source}: deviation kind {kind!r} is not one of {', '.join(KINDS)}")
+    if not (np.isfinite(rate) and rate > 0):
+        raise AnalysisError(f"{source}: sample rate {rate!r} Hz must be positive")
+    y = np.asarray(y, float)
+    cols = tuple(columns) if columns is not None else tuple(f"ch{i}" for i in range(1 if y.ndim == 1 else y.shape[1]))
+    segments, _ = prepare_rate_data(y, cols, source, gap_policy, quantity)
+    longest = max(len(s) for s in segments)
+    m = averaging_factors(longest + 1, taus, rate, kind)
+    if len(m) == 0:
+        raise AnalysisError(f"{source}: no averaging time fits {longest} samples for {kind}")
+    sums = np.zeros((len(m), len(cols)))
+    n = np.zeros(len(m), np.int64)
+    for seg in segments:
+        n_seg = _n_terms(kind, len(seg) + 1, m)
+        use = n_seg > 0
+        sums[use] += squared_sums(phase(seg, rate), m[use], kind)
+        n[use] += n_seg[use]
+    return DeviationCurve(kind, m / rate, m, normalise(kind, sums, n, m, rate), n, float(rate),
+                          sum(len(s) for s in segments), cols)

@@ -1,0 +1,261 @@
+"""Magnetometer calibration: hard iron, soft iron, alignment to the IMU, heading accuracy.
+
+Entry points:
+
+- :func:`points_from_session`: the points a fit uses, from a session: one mean per static
+  step, block means of at most ``block_deg`` of table rotation in rate steps, each with the
+  accelerometer mean and the body-to-reference attitude from the table angle and mount.
+- :func:`calibrate`: checks the input, chooses the estimator (:mod:`mag_select`) unless told,
+  fits it (:mod:`mag_fit2d`, :mod:`mag_ellipsoid`, :mod:`mag_attitude`), assesses coverage
+  and residuals (:mod:`mag_quality`) and the heading error against the table
+  (:mod:`mag_heading`); returns a :class:`MagCalibration`.
+- :func:`triad_calibration`: the calibration set's ``mag`` block from a fit: ``bias`` = hard
+  iron µT, ``scale_misalignment`` = ``M`` with ``I + M`` the soft-iron distortion
+  (``measured = (I + M) true + bias``), ``field_norm_ut``, sigmas (NaN = not observed).
+
+The model and the scale convention are in :mod:`workbench.analysis.mag_fit`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from workbench.analysis import mag_attitude, mag_ellipsoid, mag_fit2d, mag_quality, mag_select
+from workbench.analysis.mag_fit import FIELD_RANGE_UT, MagFit
+from workbench.analysis.mag_heading import HeadingEvaluation, evaluate_heading
+from workbench.calset import TriadCalibration
+from workbench.errors import AnalysisError
+from workbench.model import TriadModel
+from workbench.session import Session
+
+MIN_POINTS = {"2d": 6, "2d-minmax": 6, "sphere": 8, "ellipsoid": 15, "algebraic": 15, "dip": 15, "attitude": 10}
+STATIC_KINDS = ("static", "soak", "ramp")
+ROTATING_KINDS = ("rate", "carousel")
+_UNIT_FACTORS = {"gauss": 100.0, "milligauss": 0.1, "nT": 1e-3}  # µT per unit
+
+
+@dataclass(frozen=True)
+class MagPoints:
+    """Points for a magnetometer fit (all arrays row-aligned).
+
+    ``mag`` (N, 3) µT and ``accel`` (N, 3) m/s^2 (or None) in the body frame; ``attitude`` N
+    body-to-reference rotations or None; ``frame`` names the reference (``"NED"`` when the
+    table zero azimuth is known, else ``"table"``: level frame with x along the table zero);
+    ``step`` (N,) the step index of each point; ``samples_per_point`` (N,).
+    """
+
+    mag: np.ndarray
+    accel: np.ndarray | None = None
+    attitude: Rotation | None = None
+    frame: str | None = None
+    step: np.ndarray | None = None
+    samples_per_point: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return len(self.mag)
+
+
+@dataclass(frozen=True)
+class MagCalibration:
+    """Everything :func:`calibrate` found: the fit, why it was chosen, quality, heading error (calibrated,
+    raw = uncalibrated, and with the plain algebraic baseline fit), the points."""
+
+    fit: MagFit
+    choice: mag_select.Choice
+    quality: mag_quality.Quality
+    heading: HeadingEvaluation | None
+    raw_heading: HeadingEvaluation | None
+    baseline: MagFit | None
+    baseline_heading: HeadingEvaluation | None
+    points: MagPoints
+    warnings: tuple[str, ...]
+
+    def to_dict(self) -> dict:
+        """JSON-ready result (SI, angles in rad unless the key says ``_deg``)."""
+        return {"method": self.fit.method, "reason": self.choice.reason, "fit": self.fit.to_dict(),
+                "quality": self.quality.to_dict(),
+                "heading": None if self.heading is None else self.heading.to_dict(),
+                "raw_heading": None if self.raw_heading is None else self.raw_heading.to_dict(),
+                "baseline": None if self.baseline is None else self.baseline.to_dict(),
+                "baseline_heading": None if self.baseline_heading is None else self.baseline_heading.to_dict(),
+                "n_points": len(self.points), "warnings": list(self.warnings)}
+
+
+def points_from_session(session: Session, block_deg: float = 1.0) -> MagPoints:
+    """Fit points from a session with magnetometer columns (see the module docstring).
+
+    Static steps give one point each (their mean); rate and carousel steps are cut into
+    blocks of at most ``block_deg`` degrees of table rotation (using the ``table_angle``
+    column when present, else the commanded rate). Index moves are skipped.
+    """
+    if not session.has_mag:
+        raise AnalysisError(f"{session.name}: samples have no magnetometer columns mx, my, mz")
+    frame = "NED" if session.site.table_zero_azimuth is not None else "table"
+    mags, accs, rots, steps, counts = [], [], [], [], []
+    for st in session.steps:
+        df = session.step_samples(st.index)
+        if df.empty or st.kind not in STATIC_KINDS + ROTATING_KINDS:
+            continue
+        m, a = df[["mx", "my", "mz"]].to_numpy(float), df[["ax", "ay", "az"]].to_numpy(float)
+        if st.kind in STATIC_KINDS:
+            angle = float(df["table_angle"].mean()) if "table_angle" in df else st.table_angle
+            groups = [(np.arange(len(df)), angle)]
+        else:
+            t = df["t"].to_numpy(float)
+            ang = df["table_angle"].to_numpy(float) if "table_angle" in df else st.table_angle + st.table_rate * (t - st.t_start)
+            ang = np.unwrap(ang)
+            block = np.floor((ang - ang[0]) / np.radians(block_deg) * np.sign(st.table_rate or 1.0)).astype(int)
+            groups = [(np.flatnonzero(block == k), None) for k in np.unique(block)]
+            groups = [(g, float(np.mean(ang[g]))) for g, _ in groups]
+        for g, angle in groups:
+            mags.append(m[g].mean(axis=0))
+            accs.append(a[g].mean(axis=0))
+            rot = session.attitude(st, angle) if frame == "NED" else session.table_attitude(st, angle)
+            rots.append(rot)
+            steps.append(st.index)
+            counts.append(len(g))
+    if not mags:
+        raise AnalysisError(f"{session.name}: no static or rotating step with samples for a magnetometer fit")
+    return MagPoints(np.array(mags), np.array(accs), Rotation.concatenate(rots), frame, np.array(steps),
+                     np.array(counts))
+
+
+def check_points(mag: np.ndarray, method: str, source: str = "magnetometer data") -> None:
+    """Reject input no fit can trust: NaN, too few points, units that are not µT (raises AnalysisError)."""
+    mag = np.asarray(mag, float)
+    if mag.ndim != 2 or mag.shape[1] != 3:
+        raise AnalysisError(f"{source}: expected an (N, 3) array of µT, got shape {mag.shape}")
+    bad = ~np.isfinite(mag).all(axis=1)
+    if bad.any():
+        raise AnalysisError(f"{source}: NaN or infinite value in {int(bad.sum())} point(s), first at row "
+                            f"{int(np.argmax(bad))}; remove or repair them")
+    need = MIN_POINTS.get(method, max(MIN_POINTS.values()))
+    if len(mag) < need:
+        raise AnalysisError(f"{source}: {len(mag)} points, the {method} fit needs at least {need}")
+    _check_units(float(np.median(np.linalg.norm(mag - np.median(mag, axis=0), axis=1))),
+                 float(np.median(np.linalg.norm(mag, axis=1))), source)
+
+
+def _check_units(radius: float, magnitude: float, source: str) -> None:
+    """Raise if the data's size only makes sense in another unit (gauss, milligauss, nT)."""
+    lo, hi = FIELD_RANGE_UT
+    size = max(radius, magnitude)
+    if lo / 3 <= size <= hi * 3:
+        return
+    for unit, f in _UNIT_FACTORS.items():
+        if lo <= size * f <= hi * 3:
+            raise AnalysisError(f"{source}: field size {size:.4g} where µT is declared looks like {unit} "
+                                f"({size * f:.4g} µT after conversion); convert to µT")
+
+
+def check_fit_norm(fit: MagFit, source: str) -> None:
+    """After a 3D fit: a field norm that is a unit slip (gauss, mG, nT) is an error."""
+    lo, hi = FIELD_RANGE_UT
+    if fit.method.startswith("2d") or lo <= fit.field_norm_ut <= hi:
+        return
+    for unit, f in _UNIT_FACTORS.items():
+        if lo <= fit.field_norm_ut * f <= hi:
+            raise AnalysisError(f"{source}: fitted field norm {fit.field_norm_ut:.4g} µT looks like {unit} "
+                                f"({fit.field_norm_ut * f:.4g} µT after conversion); convert the data to µT")
+
+
+def _down(points: MagPoints) -> np.ndarray | None:
+    if points.accel is not None:
+        return mag_attitude.down_direction(points.accel)
+    if points.attitude is not None:
+        return points.attitude.inv().apply(np.array([0.0, 0.0, 1.0]))
+    return None
+
+
+def _fit(method: str, points: MagPoints, down: np.ndarray | None, field_norm_ut, robust: bool,
+         notes: tuple[str, ...] = ()) -> MagFit:
+    mag = points.mag
+    flat = mag_quality.flatness(mag)
+    if method in ("sphere", "ellipsoid", "algebraic", "dip", "attitude") and flat < mag_quality.FLAT_LIMIT:
+        raise AnalysisError(f"{method} fit: all points lie in one plane (flatness {flat:.3g}): a 3D fit needs "
+                            "tilted positions; use method '2d' for level data")
+    if method in ("2d", "2d-minmax"):
+        dmean = down.mean(axis=0) if down is not None else np.array([0.0, 0.0, 1.0])
+        return (mag_fit2d.fit_2d(mag, dmean, robust) if method == "2d" else mag_fit2d.fit_2d_minmax(mag, dmean))
+    if method == "sphere":
+        return mag_ellipsoid.fit_sphere(mag, field_norm_ut, robust, notes)
+    if method == "ellipsoid":
+        return mag_ellipsoid.fit_ellipsoid(mag, field_norm_ut, robust, notes)
+    if method == "algebraic":
+        return mag_ellipsoid.fit_algebraic_plain(mag, field_norm_ut)
+    if method == "dip":
+        if points.accel is None:
+            raise AnalysisError("dip fit: needs accelerometer data")
+        return mag_attitude.fit_dip(mag, points.accel, field_norm_ut, robust, notes)
+    if points.attitude is None:
+        raise AnalysisError("attitude fit: needs the attitude of every point (table angles)")
+    return mag_attitude.fit_attitude(mag, points.attitude, field_norm_ut, robust, notes)
+
+
+def calibrate(points: MagPoints, method: str = "auto", robust: bool = False, field_norm_ut: float | None = None,
+              declination: float | None = None, baseline: bool = True, accel_model: TriadModel | None = None,
+              source: str = "magnetometer data") -> MagCalibration:
+    """Calibrate a magnetometer from ``points``.
+
+    Parameters
+    ----------
+    method : one of :data:`mag_select.METHODS`; ``auto`` chooses (reason reported)
+    robust : reject outliers (spikes) before the final least-squares fit
+    field_norm_ut : reference field magnitude µT (the site's field), fixes the scale of ``I + M``;
+        None uses ``det(I + M) = 1`` and reports the fitted norm
+    declination : rad, field azimuth from the reference x axis for the heading error; None uses
+        the attitude fit's estimate or, for other methods, the mean offset
+    baseline : also fit the plain algebraic ellipsoid (3D data) for comparison
+    accel_model : the accelerometer's calibration; its compensation is applied to ``points.accel``
+        first (an uncalibrated accelerometer's bias tilts the gravity direction: 20 mg ~ 1.1°)
+
+    The heading error is evaluated with the tilt from the calibrated accelerometer when
+    ``accel_model`` is given, else from the table attitude (so that it measures the
+    magnetometer calibration, not the accelerometer's errors), else from the raw accelerometer.
+    """
+    if method not in mag_select.METHODS:
+        raise AnalysisError(f"unknown magnetometer method {method!r} (known: {', '.join(mag_select.METHODS)})")
+    check_points(points.mag, method if method != "auto" else "2d", source)
+    if points.accel is not None and not np.isfinite(points.accel).all():
+        raise AnalysisError(f"{source}: NaN or infinite accelerometer value")
+    if accel_model is not None and points.accel is not None:
+        points = replace(points, accel=accel_model.compensate(points.accel))
+    down = _down(points)
+    flat = mag_quality.flatness(points.mag)
+    raw_cov = mag_quality.sphere_coverage(points.mag - points.mag.mean(axis=0))
+    spread = mag_quality.gravity_spread(down) if points.accel is not None or points.attitude is not None else None
+    if method == "auto":
+        choice = mag_select.choose(flat, raw_cov, spread, points.attitude is not None)
+    else:
+        choice = mag_select.Choice(method, "chosen by the user")
+    check_points(points.mag, choice.method, source)
+    fit = _fit(choice.method, points, down, field_norm_ut, robust)
+    check_fit_norm(fit, source)
+    quality = mag_quality.assess(fit, points.mag, down, field_norm_ut)
+    head = raw_head = base = base_head = None
+    if points.attitude is not None:
+        tilt, hdown = (("calibrated accelerometer", down) if accel_model is not None and points.accel is not None
+                       else ("table", points.attitude.inv().apply(np.array([0.0, 0.0, 1.0]))))
+        decl = declination if declination is not None else fit.declination
+        head = evaluate_heading(fit.compensate(points.mag), hdown, points.attitude, decl, tilt)
+        known = None if head.declination_estimated else head.declination
+        raw_head = evaluate_heading(points.mag, hdown, points.attitude, known, tilt)
+    if baseline and not choice.method.startswith("2d") and len(points) >= MIN_POINTS["algebraic"]:
+        try:
+            base = mag_ellipsoid.fit_algebraic_plain(points.mag, field_norm_ut)
+        except AnalysisError as exc:  # the baseline failing is itself a finding, not an error of ours
+            quality = replace(quality, warnings=(*quality.warnings, f"plain algebraic baseline: {exc}"))
+        if base is not None and head is not None:
+            base_head = evaluate_heading(base.compensate(points.mag), hdown, points.attitude, known, tilt)
+    warnings = tuple(dict.fromkeys((*fit.warnings, *quality.warnings)))
+    return MagCalibration(fit, choice, quality, head, raw_head, base, base_head, points, warnings)
+
+
+def triad_calibration(fit: MagFit) -> TriadCalibration:
+    """The calibration set's ``mag`` block of a fit (hard iron µT, ``M`` = soft iron - I, field norm, sigmas)."""
+    sigma = {"bias": fit.bias_sigma, "scale_misalignment": fit.soft_iron_sigma}
+    return TriadCalibration(fit.model, sigma, float(fit.field_norm_ut),
+                            None if not np.isfinite(fit.field_norm_sigma) else float(fit.field_norm_sigma))

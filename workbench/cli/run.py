@@ -1,0 +1,224 @@
+"""``workbench run``, ``analyze``, ``import`` and ``procedures``: record, analyse and import sessions."""
+
+from __future__ import annotations
+
+import json
+from datetime import UTC, datetime
+from pathlib import Path
+
+import typer
+from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+from rich.table import Table
+
+from workbench.cli import err, out
+from workbench.errors import ProcedureError, WorkbenchError
+from workbench.procedure import ProcedureResult, run_analysis
+from workbench.registry import procedure, procedures
+from workbench.store import Store
+
+
+def parse_options(items: list[str] | None) -> dict:
+    """``key=value`` pairs; values parsed as JSON where they parse (numbers, lists, true/false)."""
+    opts = {}
+    for item in items or []:
+        if "=" not in item:
+            raise WorkbenchError(f"--option {item!r}: expected key=value")
+        key, value = item.split("=", 1)
+        try:
+            opts[key.strip()] = json.loads(value)
+        except json.JSONDecodeError:
+            opts[key.strip()] = value
+    return opts
+
+
+def _progress_bar():
+    return Progress(TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total} steps"),
+                    TextColumn("{task.fields[step]}"), TimeRemainingColumn(), console=err, transient=False)
+
+
+def _tracker(bar: Progress, name: str):
+    task = bar.add_task(name, total=None, step="")
+
+    def progress(i: int, n: int, rec) -> None:
+        bar.update(task, total=n, completed=i + 1, step=f"{rec.kind} {rec.label}".strip())
+    return progress
+
+
+def _print_sequence(seq, limit: int = 12) -> None:
+    rows = seq.describe()
+    t = Table("#", "kind", "mount", "angle °", "rate °/s", "dwell s", "°C", "label",
+              title=f"sequence {seq.name}: {len(rows)} steps, {seq.duration_s / 60:.1f} min planned")
+    for r in rows[:limit]:
+        t.add_row(str(r["index"]), r["kind"], r["mount"], f"{r['table_angle_deg']:g}", f"{r['table_rate_dps']:g}",
+                  f"{r['duration_s']:g}", "" if r["temperature_c"] is None else f"{r['temperature_c']:g}", r["label"])
+    if len(rows) > limit:
+        t.add_row("…", f"{len(rows) - limit} more", "", "", "", "", "", "")
+    out.print(t)
+
+
+def _print_result(result: ProcedureResult, out_dir: Path | None) -> None:
+    for line in result.summary:
+        out.print(line, highlight=False)
+    for w in result.warnings:
+        out.print(f"[yellow]warning:[/] {w}", highlight=False)
+    if out_dir is not None:
+        out.print(f"results in {out_dir} (result.json{', calibration.json' if result.calibration else ''}, figures/)")
+
+
+def _load_calibration(ref: str | None):
+    if ref is None:
+        return None
+    from workbench.cli.sets import load_set_ref
+
+    return load_set_ref(ref)
+
+
+def _default_out(name: str, serial: str) -> Path:
+    return Path("runs") / f"{name}-{serial}-{datetime.now(UTC).strftime('%Y%m%dT%H%M%S')}"
+
+
+def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A procedure name, or 'campaign'."),
+        unit: Path = typer.Option(Path("fixtures/units/industrial_mems.yaml"), "--unit",
+                                  help="Unit grade fixture (fixtures/units/*.yaml) or grade name."),
+        rig: str = typer.Option("sim", "--rig", help="'sim' or a rig configuration file (fixtures/rigs/*.yaml)."),
+        seed: int = typer.Option(1, "--seed", help="Seed of the simulated unit and its noise."),
+        out_dir: Path = typer.Option(None, "--out", help="Output folder (default runs/<procedure>-<serial>-<time>)."),
+        resume: Path = typer.Option(None, "--resume", help="Continue an interrupted session folder."),
+        option: list[str] = typer.Option(None, "--option", "-o", help="Sequence option key=value (repeatable)."),
+        calibration: str = typer.Option(None, "--calibration", help="Calibration set (id or JSON) for validations."),
+        no_store: bool = typer.Option(False, "--no-store", help="Leave the store untouched."),
+        dry_run: bool = typer.Option(False, "--dry-run", help="Show the sequence and stop.")) -> None:
+    """Record a procedure's sequence on the rig, analyse it, store the result and print a summary."""
+    from workbench.grades import draw_unit, load_spec
+    from workbench.jobs import record_procedure, resume_procedure, run_campaign
+    from workbench.rigconfig import load_rig_config
+
+    store = None if no_store or dry_run else Store()
+    if resume is not None:
+        with _progress_bar() as bar:
+            session = resume_procedure(resume, _tracker(bar, "resume"))
+        proc = procedure(session.procedure)
+        _analyse_and_report(proc, session, resume.parent if resume.name == "session" else resume, store, calibration)
+        return
+    spec = load_spec(unit)
+    cfg = load_rig_config(rig)
+    truth = draw_unit(spec, seed)
+    if procedure_name == "campaign":
+        out_dir = out_dir or _default_out("campaign", truth.serial)
+        out.print(f"campaign for {truth.serial} ({spec.name}) on {cfg.name}, seed {seed} -> {out_dir}")
+        if dry_run:
+            from workbench.jobs import applies
+            from workbench.registry import campaign_procedures
+
+            for p in campaign_procedures(set(spec.triads)):
+                if applies(p, spec):
+                    _print_sequence(p.sequence(spec, **p.DEFAULTS))
+            return
+        with _progress_bar() as bar:
+            res = run_campaign(spec, truth, cfg, seed, out_dir, store, lambda name: _tracker(bar, name))
+        for name, r in res.results.items():
+            out.print(f"[bold]{name}[/]")
+            _print_result(r, out_dir / name)
+        out.print(f"[bold green]calibration set[/] {res.calibration.id} -> {out_dir / 'calibration.json'}")
+        out.print(f"figures under {out_dir}/*/figures; store: {store.url if store else 'not used (--no-store)'}")
+        return
+    proc = procedure(procedure_name)
+    options = parse_options(option)
+    seq = proc.sequence(spec, **{**proc.DEFAULTS, **options})
+    _print_sequence(seq)
+    if dry_run:
+        return
+    out_dir = out_dir or _default_out(proc.NAME, truth.serial)
+    cal = _load_calibration(calibration)
+    if cal is None and _needs_cal(proc):
+        cal = _calibrate_first(spec, truth, cfg, seed, out_dir)
+    with _progress_bar() as bar:
+        session = record_procedure(proc, spec, truth, cfg, seed, out_dir / "session", options, _tracker(bar, proc.NAME))
+    _analyse_and_report(proc, session, out_dir, store, cal)
+
+
+def _needs_cal(proc) -> bool:
+    from workbench.jobs import needs_calibration
+
+    return needs_calibration(proc)
+
+
+def _calibrate_first(spec, truth, cfg, seed, out_dir: Path):
+    """On the simulated rig, calibrate the unit with the calibrating procedures before a validation."""
+    from workbench.jobs import CALIBRATING, run_campaign
+
+    if cfg.driver != "sim":
+        raise ProcedureError("this validation needs --calibration SET on a real rig")
+    out.print(f"calibrating the simulated unit first ({', '.join(CALIBRATING)})")
+    with _progress_bar() as bar:
+        res = run_campaign(spec, truth, cfg, seed, out_dir / "calibration", None, lambda n: _tracker(bar, n),
+                           only=list(CALIBRATING))
+    return res.calibration
+
+
+def _analyse_and_report(proc, session, out_dir: Path, store, calibration) -> None:
+    options = {"calibration": _load_calibration(calibration) if isinstance(calibration, str) else calibration} \
+        if calibration is not None else {}
+    result = run_analysis(proc, session, options, out_dir, store)
+    _print_result(result, out_dir)
+    if result.calibration is not None:
+        out.print(f"calibration set {result.calibration.id}"
+                  f"{' stored in ' + store.url if store else ''}")
+
+
+def analyze(procedure_name: str = typer.Argument(..., metavar="PROCEDURE"),
+            session_dir: Path = typer.Argument(..., help="Session folder (session.json + samples)."),
+            out_file: Path = typer.Option(None, "--out", help="Also write the calibration set (or result) here."),
+            no_store: bool = typer.Option(False, "--no-store", help="Leave the store untouched."),
+            option: list[str] = typer.Option(None, "--option", "-o", help="Analysis option key=value."),
+            calibration: str = typer.Option(None, "--calibration", help="Calibration set for validations."),
+            figures: Path = typer.Option(None, "--figures", help="Write result.json and figures/ into this folder.")
+            ) -> None:
+    """Analyse any session in the workbench format and store its calibration set (or result)."""
+    from workbench.session import load_session
+
+    proc = procedure(procedure_name)
+    session = load_session(session_dir)
+    options = parse_options(option)
+    if calibration is not None:
+        options["calibration"] = _load_calibration(calibration)
+    result = run_analysis(proc, session, options, figures, None if no_store else Store())
+    if out_file is not None:
+        from workbench.calset import atomic_write_text
+        from workbench.procedure import result_json
+
+        if result.calibration is not None and out_file.name != "result.json":
+            result.calibration.save(out_file)
+        else:
+            atomic_write_text(out_file, result_json(result))
+        out.print(f"wrote {out_file}")
+    _print_result(result, figures)
+
+
+def import_cmd(profile: Path = typer.Argument(..., help="Import profile (YAML)."),
+               data_file: Path = typer.Argument(..., help="The recording to import (CSV or Parquet)."),
+               out_dir: Path = typer.Option(..., "--out", help="Session folder to create.")) -> None:
+    """Import another tool's recording into a session folder through an import profile."""
+    from workbench.importer import import_file
+
+    session = import_file(profile, data_file, out_dir)
+    out.print(f"imported {len(session.samples)} samples, {len(session.steps)} steps -> {out_dir}")
+    t = Table("#", "kind", "label", "t_start s", "t_end s")
+    for s in session.steps:
+        t.add_row(str(s.index), s.kind, s.label, f"{s.t_start:.2f}", f"{s.t_end:.2f}")
+    out.print(t)
+
+
+def list_procedures() -> None:
+    """List the procedures and their default options."""
+    t = Table("procedure", "title", "triads", "campaign", "defaults")
+    for name, p in sorted(procedures().items()):
+        t.add_row(name, p.TITLE, ", ".join(p.TRIADS), str(p.CAMPAIGN_ORDER or "—"), json.dumps(p.DEFAULTS))
+    out.print(t)
+
+
+def register(app: typer.Typer) -> None:
+    app.command("run")(run)
+    app.command("analyze")(analyze)
+    app.command("import")(import_cmd)
+    app.command("procedures")(list_procedures)

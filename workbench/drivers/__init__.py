@@ -1,0 +1,1 @@
+"""Drivers for real rigs: turntables, climatic chambers and IMU streams."""

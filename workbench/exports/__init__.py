@@ -1,0 +1,1 @@
+"""Export formats of calibration sets, one module per format (see workbench.registry)."""

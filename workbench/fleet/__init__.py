@@ -1,0 +1,1 @@
+"""Fleet scale: batch analysis on Dask, simulated fleets, certificates."""

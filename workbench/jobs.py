@@ -1,0 +1,141 @@
+"""Jobs: record a procedure's sequence on a rig and analyse it; the campaign of all procedures.
+
+These are the orchestration the command line, the dashboard and batch runs share:
+:func:`open_rig` (simulated or real), :func:`record_procedure`, :func:`resume_procedure` and
+:func:`run_campaign`, which runs every procedure that applies to the unit in campaign order
+and merges their calibration sets into one.
+"""
+
+from __future__ import annotations
+
+import inspect
+import json
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import ModuleType
+
+from workbench.calset import CalibrationSet, Unit, atomic_write_text, merge
+from workbench.errors import ProcedureError, WorkbenchError
+from workbench.procedure import ProcedureResult, run_analysis
+from workbench.registry import campaign_procedures
+from workbench.rigconfig import RigConfig, load_rig_config
+from workbench.runner import Progress, record, reopen, rig_state_for_resume, start
+from workbench.session import Session
+
+CALIBRATING = ("multiposition", "rate", "magnetometer")  # run first when a validation needs a set
+
+
+def open_rig(cfg: RigConfig, truth, seed: int, state=None):
+    """A rig for ``cfg``: the simulated rig (driving ``truth``), or a real driver."""
+    if cfg.driver == "sim":
+        from workbench.sim.rig import SimRig
+
+        return SimRig(cfg, truth, seed, state)
+    try:
+        from workbench.drivers.rig import open_real_rig
+    except ImportError:
+        raise WorkbenchError(f"rig {cfg.name}: driver {cfg.driver!r} is not available in this version") from None
+    return open_real_rig(cfg, truth, seed)
+
+
+def applies(proc: ModuleType, spec) -> bool:
+    """Whether procedure ``proc`` applies to a unit of grade ``spec`` (its triads, its own test)."""
+    if not set(proc.TRIADS) <= set(spec.triads):
+        return False
+    return bool(proc.applies(spec)) if hasattr(proc, "applies") else True
+
+
+def needs_calibration(proc: ModuleType) -> bool:
+    """Whether the procedure's analysis takes a ``calibration`` set (a validation run)."""
+    return "calibration" in inspect.signature(proc.analyze).parameters
+
+
+def record_procedure(proc: ModuleType, spec, truth, cfg: RigConfig, seed: int, out_dir: Path | None,
+                     options: Mapping | None = None, progress: Progress | None = None) -> Session:
+    """Record ``proc``'s sequence for a unit of grade ``spec`` on the rig ``cfg``."""
+    if not set(proc.TRIADS) <= set(spec.triads):
+        raise ProcedureError(f"procedure {proc.NAME} needs triads {', '.join(proc.TRIADS)}; "
+                             f"grade {spec.name} has {', '.join(spec.triads)}")
+    opts = {**getattr(proc, "DEFAULTS", {}), **dict(options or {})}
+    sequence = proc.sequence(spec, **opts)
+    rig = open_rig(cfg, truth, seed)
+    rec = start(sequence, rig, Unit(truth.serial, truth.model), proc.NAME, out_dir,
+                extra={"seed": int(seed), "grade": spec.name, "rig_config": str(cfg.path or cfg.name)})
+    if out_dir is not None and cfg.driver == "sim":
+        from workbench.sim import write_truth
+
+        write_truth(Path(out_dir), truth, cfg, seed)
+    return record(rec, rig, progress)
+
+
+def resume_procedure(out_dir: Path, progress: Progress | None = None) -> Session:
+    """Continue an interrupted recording from its first incomplete step."""
+    from workbench.grades import UnitTruth
+
+    rec = reopen(out_dir)
+    m = rec.manifest
+    cfg = load_rig_config(m.get("rig_config") or "sim")
+    truth_file = Path(out_dir) / "truth.json"
+    if cfg.driver == "sim":
+        if not truth_file.exists():
+            raise WorkbenchError(f"{out_dir}: no truth.json; a simulated session cannot be resumed without it")
+        truth = UnitTruth.from_dict(json.loads(truth_file.read_text())["unit"], str(truth_file))
+    else:
+        truth = None
+    seed = int(m.get("seed", 0)) + 1000 * (rec.done + 1)  # fresh noise stream for the resumed part
+    rig = open_rig(cfg, truth, seed, rig_state_for_resume(rec))
+    return record(rec, rig, progress)
+
+
+@dataclass
+class CampaignResult:
+    """The merged calibration set of a campaign and the result of each procedure."""
+
+    calibration: CalibrationSet
+    results: dict[str, ProcedureResult] = field(default_factory=dict)
+    out_dir: Path | None = None
+
+
+def run_campaign(spec, truth, cfg: RigConfig, seed: int, out_dir: Path, store=None,
+                 progress_for: Callable[[str], Progress | None] | None = None,
+                 only: list[str] | None = None) -> CampaignResult:
+    """Run every calibration procedure that applies to the unit, in order, and merge their sets.
+
+    Each procedure records into ``out_dir/<name>/session`` and writes its results and figures to
+    ``out_dir/<name>``; the merged set goes to ``out_dir/calibration.json`` and, with a
+    ``store``, into the store (per-procedure results too), after everything succeeded.
+    """
+    procs = [p for p in campaign_procedures(set(spec.triads)) if applies(p, spec) and not needs_calibration(p)]
+    if only:
+        procs = [p for p in procs if p.NAME in only]
+    if not procs:
+        raise ProcedureError(f"no campaign procedure applies to grade {spec.name}")
+    out_dir = Path(out_dir)
+    results: dict[str, ProcedureResult] = {}
+    sessions: dict[str, Session] = {}
+    for k, proc in enumerate(procs):
+        pdir = out_dir / proc.NAME
+        progress = progress_for(proc.NAME) if progress_for else None
+        session = record_procedure(proc, spec, truth, cfg, seed + 101 * (k + 1), pdir / "session", None, progress)
+        sessions[proc.NAME] = session
+        results[proc.NAME] = run_analysis(proc, session, {}, pdir, None)
+    sets = [r.calibration for r in results.values() if r.calibration is not None]
+    if not sets:
+        raise ProcedureError("the campaign produced no calibration set")
+    merged = merge(*sets)
+    merged.save(out_dir / "calibration.json")
+    atomic_write_text(out_dir / "campaign.json", json.dumps({
+        "unit": {"serial": truth.serial, "model": truth.model}, "grade": spec.name, "seed": seed,
+        "procedures": list(results), "calibration_id": merged.id,
+        "warnings": {n: r.warnings for n, r in results.items()}}, indent=1) + "\n")
+    if store is not None:
+        for name, r in results.items():
+            s = sessions[name]
+            store.add_session(s.id, s.unit.serial, s.unit.model, name, str(s.path), s.samples_sha256() or "",
+                              len(s.steps), True)
+            from workbench.procedure import result_json
+
+            store.add_result(name, s.id, s.unit.serial, json.loads(result_json(r)), None)
+        store.add_set(merged)
+    return CampaignResult(merged, results, out_dir)

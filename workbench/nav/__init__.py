@@ -1,0 +1,1 @@
+"""Navigation filters that consume calibration sets: compensation, AHRS, ZUPT alignment."""

@@ -1,0 +1,307 @@
+"""ZUPT fine alignment: coarse levelling, then a 15-state error-state EKF held at the frozen solution.
+
+The thesis algorithm (shared/seeds/000_..., sec. 3.2-3.3, eq. 3.1-3.67): after a coarse
+levelling (roll, pitch from the mean accelerometer output; heading given from outside, e.g.
+the table or a north-finding result) the initial position, velocity and attitude are frozen;
+the simplified mechanisation (eq. 3.4-3.6, 3.42-3.48) integrates the bias-corrected samples at
+the full sample rate, and every ``update_interval_s`` (1 s in the thesis: "every second (that
+is 100 steps)") a corrector compares the mechanised state with the frozen one (eq. 3.57) and
+feeds the 15-state error estimate back (eq. 3.61-3.67): position, velocity, attitude,
+accelerometer and gyro biases. Optionally the zero-angular-rate update of paper 001
+(shared/seeds/001_..., eq. 35-39, with the moving average of eq. 40) is added, and each scalar
+innovation scales its Kalman gain (paper 001 eq. 46-47, bifactor M-estimator).
+
+Conventions (state them because the thesis mixes signs): the error state is
+``dx = [dp_NED (m), dv_NED (m/s), dtheta_NED (rad), db_a (m/s^2), db_g (rad/s)]`` with
+``true = estimate + error`` for p, v, biases and ``C_true = Exp(dtheta) C_est`` for attitude.
+Position errors are kept in metres north/east/down (the thesis uses latitude, longitude,
+height: the same state scaled by the radii of curvature); the position-dependent terms of
+F (eq. 3.31, 3.33, 3.36) are proportional to V or Omega/R (< 1e-11 /s at rest) and omitted.
+F and G are eq. 3.29-3.30 with these signs; the covariance is propagated over each interval
+with the exact (Van Loan) discretisation of F and G Q G^T rather than eq. 3.49's first order,
+because the interval is 1 s, not one sample.
+
+Two refinements over the thesis, both for honest uncertainties:
+- the levelled attitude holds the horizontal accelerometer bias (tilt error = bias / g); the
+  attitude pseudo-measurement models that dependency (``z = dtheta + S db_a``) so the tilt
+  and horizontal accel-bias uncertainties stay at their (unobservable) prior, as physics says;
+- the external heading's own uncertainty cannot be reduced by the filter and is added to the
+  reported heading sigma.
+
+Public: :class:`ZuptConfig`, :class:`ZuptResult`, :func:`align`, :func:`gain_weight`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import expm
+from scipy.spatial.transform import Rotation
+
+from workbench.earth import earth_rate_ned, gravity_ned
+from workbench.errors import AnalysisError
+from workbench.nav.compensate import ImuSamples, ProcessNoise
+from workbench.nav.strapdown import coarse_level, euler_rph, from_rph, propagate_block
+
+N_STATES = 15
+P, V, A, BA, BG = (slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), slice(12, 15))
+MEASUREMENTS = ("position", "velocity", "attitude", "heading", "zarupt")
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def gain_weight(mu: float, c0: float, c1: float) -> float:
+    """Gain scale factor of a normalised innovation ``mu`` (paper 001 eq. 47, bifactor reduction).
+
+    1 for ``|mu| <= c0``; ``c0 (c1 - |mu|) / (|mu| (c1 - c0))`` for ``c0 < |mu| <= c1`` (the
+    printed eq. 47 garbles this numerator; this form is continuous: 1 at c0, 0 at c1); 0 beyond.
+    """
+    a = abs(mu)
+    if a <= c0:
+        return 1.0
+    if a > c1:
+        return 0.0
+    return c0 * (c1 - a) / (a * (c1 - c0))
+
+
+@dataclass(frozen=True)
+class ZuptConfig:
+    """Options of the ZUPT alignment (SI).
+
+    ``level_s`` coarse-levelling window; ``update_interval_s`` corrector period (thesis: 1 s);
+    ``measurements`` any of ``position``, ``velocity``, ``attitude`` (all three angles held at
+    the frozen solution, eq. 3.57), ``heading`` (heading only), ``zarupt`` (paper 001 eq. 35-40);
+    ``zarupt_window_s`` the moving-average length of eq. 40; ``gain_scaling`` with ``c0``, ``c1``
+    (eq. 46-47, paper: c1 = 6 c0 = 6); pseudo-measurement 1-sigma noises; bias priors (1-sigma,
+    per axis or scalar); ``heading_sigma`` the external heading's 1-sigma, rad.
+    """
+
+    level_s: float = 5.0
+    update_interval_s: float = 1.0
+    measurements: tuple[str, ...] = ("position", "velocity", "attitude")
+    zarupt_window_s: float = 1.0
+    gain_scaling: bool = True
+    c0: float = 1.0
+    c1: float = 6.0
+    position_sigma_m: float = 1e-3
+    velocity_sigma_mps: float = 1e-3
+    attitude_sigma_rad: float = 1e-5
+    gyro_bias_prior: float | tuple = 1e-2
+    accel_bias_prior: float | tuple = 0.1
+    heading_sigma: float = np.radians(0.1)
+
+    def __post_init__(self) -> None:
+        unknown = set(self.measurements) - set(MEASUREMENTS)
+        if unknown:
+            raise AnalysisError(f"zupt: unknown measurement(s) {sorted(unknown)} (known: {', '.join(MEASUREMENTS)})")
+        if not self.update_interval_s > 0 or not self.level_s > 0:
+            raise AnalysisError("zupt: level_s and update_interval_s must be positive")
+
+
+@dataclass(frozen=True)
+class ZuptResult:
+    """ZUPT alignment history at the corrector epochs (E epochs) and final estimates, SI.
+
+    ``t`` (E,) s from the first sample; ``rph`` (E, 3) roll, pitch, heading rad after each
+    correction, ``rph_sigma`` (E, 3) their 1-sigma (heading includes the external heading's);
+    ``position`` (E, 3) m NED offset from the frozen position; ``velocity`` (E, 3) m/s NED;
+    ``accel_bias`` / ``gyro_bias`` (E, 3) body-frame estimates with ``*_sigma`` 1-sigma;
+    ``drift_velocity`` (E,) m/s and ``drift_attitude`` (E,) rad: how far the free mechanisation
+    moved from the frozen solution over the interval before each correction; ``weights``
+    (E, m) the gain scale factors of eq. 47; ``attitude`` the final body-to-NED Rotation;
+    ``initial_rph`` the frozen roll, pitch, heading; ``t_start`` the EKF start time, s.
+    """
+
+    t: np.ndarray
+    rph: np.ndarray
+    rph_sigma: np.ndarray
+    position: np.ndarray
+    velocity: np.ndarray
+    accel_bias: np.ndarray
+    accel_bias_sigma: np.ndarray
+    gyro_bias: np.ndarray
+    gyro_bias_sigma: np.ndarray
+    drift_velocity: np.ndarray
+    drift_attitude: np.ndarray
+    weights: np.ndarray
+    attitude: Rotation
+    initial_rph: np.ndarray
+    t_start: float
+    measurements: tuple[str, ...]
+
+    def convergence_time(self, velocity_tol: float = 0.01, attitude_tol: float = np.radians(0.01)) -> float | None:
+        """Time (s from the EKF start) after which the free mechanisation stays at rest.
+
+        The thesis' criterion ("until the INS indicates itself to be at rest and non-rotating"):
+        from then on, over every interval before a correction, the velocity grows by less than
+        ``velocity_tol`` m/s and the attitude moves by less than ``attitude_tol`` rad. None if never.
+        """
+        ok = (self.drift_velocity < velocity_tol) & (self.drift_attitude < attitude_tol)
+        if not ok[-1]:
+            return None
+        bad = np.nonzero(~ok)[0]
+        k = 0 if len(bad) == 0 else bad[-1] + 1
+        return float(self.t[k] - self.t_start)
+
+
+def _continuous_model(c: np.ndarray, f_n: np.ndarray, w_ie: np.ndarray, noise: ProcessNoise):
+    """F (15x15) and G Q G^T (15x15) of thesis eq. 3.24, 3.29-3.30 in this module's sign convention."""
+    F = np.zeros((N_STATES, N_STATES))
+    F[P, V] = np.eye(3)
+    F[V, V] = -2.0 * _skew(w_ie)
+    F[V, A] = -_skew(f_n)
+    F[V, BA] = -c
+    F[A, A] = -_skew(w_ie)
+    F[A, BG] = -c
+    Q = np.zeros((N_STATES, N_STATES))
+    Q[V, V] = c @ np.diag(noise.accel_white ** 2) @ c.T
+    Q[A, A] = c @ np.diag(noise.gyro_white ** 2) @ c.T
+    Q[BA, BA] = np.diag(noise.accel_bias_rw ** 2)
+    Q[BG, BG] = np.diag(noise.gyro_bias_rw ** 2)
+    return F, Q
+
+
+def _discretise(F: np.ndarray, Q: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray]:
+    """Transition matrix and discrete process noise over T (Van Loan's method)."""
+    n = F.shape[0]
+    M = np.zeros((2 * n, 2 * n))
+    M[:n, :n] = -F
+    M[:n, n:] = Q
+    M[n:, n:] = F.T
+    E = expm(M * T)
+    phi = E[n:, n:].T
+    qd = phi @ E[:n, n:]
+    return phi, 0.5 * (qd + qd.T)
+
+
+def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: float,
+          height: float = 0.0, config: ZuptConfig = ZuptConfig()) -> ZuptResult:
+    """Run the ZUPT fine alignment on static ``samples`` (gyro rad/s, accel m/s^2, body frame).
+
+    ``latitude`` rad and ``height`` m of the site; ``heading`` rad the external heading of the
+    body x axis (clockwise from true north). The first ``config.level_s`` seconds level the
+    unit; the EKF runs on the rest at the full sample rate, correcting every
+    ``config.update_interval_s``.
+    """
+    dt = samples.dt
+    n_level = int(round(config.level_s / dt))
+    n_blk = int(round(config.update_interval_s / dt))
+    n_epochs = (len(samples) - n_level) // n_blk
+    if n_level < 1 or n_epochs < 2:
+        raise AnalysisError(f"{samples.source}: {len(samples) * dt:.1f} s of data is too short for levelling "
+                            f"({config.level_s} s) and two {config.update_interval_s} s ZUPT intervals")
+    w_ie = earth_rate_ned(latitude)
+    g_n = gravity_ned(latitude, height)
+    roll0, pitch0 = coarse_level(samples.accel[:n_level])
+    c_init = from_rph(roll0, pitch0, heading)
+    ci = c_init.as_matrix()
+    g_meas = float(np.linalg.norm(samples.accel[:n_level].mean(axis=0)))
+    # tilt of the levelled attitude caused by an accelerometer bias b (body): eps0 = S b (module doc)
+    S = np.zeros((3, 3))
+    S[0], S[1] = -ci[1] / g_meas, ci[0] / g_meas
+
+    ba_prior = np.broadcast_to(np.asarray(config.accel_bias_prior, float), (3,))
+    bg_prior = np.broadcast_to(np.asarray(config.gyro_bias_prior, float), (3,))
+    Pm = np.zeros((N_STATES, N_STATES))
+    Pm[P, P] = np.eye(3) * config.position_sigma_m ** 2
+    Pm[V, V] = np.eye(3) * config.velocity_sigma_mps ** 2
+    Pm[BA, BA] = np.diag(ba_prior ** 2)
+    Pm[BG, BG] = np.diag(bg_prior ** 2)
+    Pm[A, A] = S @ Pm[BA, BA] @ S.T + np.eye(3) * config.attitude_sigma_rad ** 2  # dtheta0 = -S b_a
+    Pm[A, BA] = -S @ Pm[BA, BA]
+    Pm[BA, A] = Pm[A, BA].T
+
+    # Jacobians at the frozen solution (first-estimates Jacobians): re-linearising at the
+    # corrected attitude would leak spurious information into the unobservable
+    # tilt / horizontal accel-bias direction. The unit is static, so they are constant.
+    F, Q = _continuous_model(ci, np.array([0.0, 0.0, -g_meas]), w_ie, noise)
+    phi, qd = _discretise(F, Q, n_blk * dt)
+    c = c_init
+    pos, vel = np.zeros(3), np.zeros(3)
+    ba, bg = np.zeros(3), np.zeros(3)
+    ts = np.arange(1, n_blk + 1) * dt
+    e_cor = Rotation.from_rotvec(-2.0 * np.outer(ts, w_ie))  # Coriolis solution E(t) = Exp(-2 w_ie t)
+    e_cor_inv = e_cor.inv()
+    n_avg = max(1, int(round(config.zarupt_window_s / dt)))
+    use = config.measurements
+    hist = {k: [] for k in ("t", "rph", "rph_sig", "pos", "vel", "ba", "bas", "bg", "bgs", "dv", "da", "w")}
+    eye = np.eye(N_STATES)
+    for k in range(n_epochs):
+        i0 = n_level + k * n_blk
+        blk = samples.slice(i0, i0 + n_blk)
+        # -- predictor / integrator (eq. 3.42-3.48), vectorised over the interval ---------------
+        att = propagate_block(c, blk.gyro - bg, dt, w_ie)
+        a_n = att.apply(blk.accel - ba) + g_n
+        vel_k = e_cor.apply(vel + np.cumsum(e_cor_inv.apply(a_n), axis=0) * dt)
+        v_prev = np.vstack([vel, vel_k[:-1]])
+        pos = pos + np.sum(0.5 * (v_prev + vel_k), axis=0) * dt
+        drift_v = float(np.linalg.norm(vel_k[-1] - vel))
+        vel, c_prev, c = vel_k[-1], c, att[-1]
+        drift_a = float(np.linalg.norm((c * c_prev.inv()).as_rotvec()))
+        Pm = phi @ Pm @ phi.T + qd
+        # -- corrector (eq. 3.57-3.60, paper 001 eq. 35-40, 46-47) -------------------------------
+        rows, z, r = [], [], []
+        if "position" in use:
+            rows.append(np.hstack([np.eye(3), np.zeros((3, 12))]))
+            z.append(-pos)
+            r.append(np.full(3, config.position_sigma_m ** 2))
+        if "velocity" in use:
+            rows.append(np.hstack([np.zeros((3, 3)), np.eye(3), np.zeros((3, 9))]))
+            z.append(-vel)
+            r.append(np.full(3, config.velocity_sigma_mps ** 2))
+        if "attitude" in use or "heading" in use:
+            h = np.zeros((3, N_STATES))
+            h[:, A] = np.eye(3)
+            h[:, BA] = S
+            za = (c_init * c.inv()).as_rotvec() - S @ ba
+            sel = [0, 1, 2] if "attitude" in use else [2]
+            rows.append(h[sel])
+            z.append(za[sel])
+            r.append(np.full(len(sel), config.attitude_sigma_rad ** 2))
+        if "zarupt" in use:
+            w_avg = np.mean(samples.gyro[max(0, i0 + n_blk - n_avg):i0 + n_blk] - bg, axis=0)
+            h = np.zeros((3, N_STATES))
+            h[:, A] = -ci.T @ _skew(w_ie)
+            h[:, BG] = -np.eye(3)
+            rows.append(h)
+            z.append(-(w_avg - c.as_matrix().T @ w_ie))  # body-frame form of eq. 38: R diagonal
+            r.append(noise.gyro_white ** 2 / (n_avg * dt))
+        H, zv, rv = np.vstack(rows), np.concatenate(z), np.concatenate(r)
+        dx = np.zeros(N_STATES)
+        weights = np.ones(len(zv))
+        for i in range(len(zv)):
+            hi = H[i]
+            ph = Pm @ hi
+            s = float(hi @ ph) + rv[i]
+            innov = zv[i] - hi @ dx
+            gain = ph / s
+            if config.gain_scaling:
+                weights[i] = gain_weight(innov / np.sqrt(s), config.c0, config.c1)
+                gain = gain * weights[i]
+            dx = dx + gain * innov
+            ikh = eye - np.outer(gain, hi)
+            Pm = ikh @ Pm @ ikh.T + rv[i] * np.outer(gain, gain)  # Joseph form: valid for the scaled gain
+        # -- feedback (eq. 3.61-3.67) -------------------------------------------------------------
+        pos, vel = pos + dx[P], vel + dx[V]
+        c = Rotation.from_rotvec(dx[A]) * c
+        ba, bg = ba + dx[BA], bg + dx[BG]
+        att_sig = np.sqrt(np.diag(Pm[A, A]))
+        hist["t"].append(blk.t[-1])
+        hist["rph"].append(euler_rph(c))
+        hist["rph_sig"].append(np.array([att_sig[0], att_sig[1], np.hypot(att_sig[2], config.heading_sigma)]))
+        hist["pos"].append(pos.copy())
+        hist["vel"].append(vel.copy())
+        hist["ba"].append(ba.copy())
+        hist["bas"].append(np.sqrt(np.diag(Pm[BA, BA])))
+        hist["bg"].append(bg.copy())
+        hist["bgs"].append(np.sqrt(np.diag(Pm[BG, BG])))
+        hist["dv"].append(drift_v)
+        hist["da"].append(drift_a)
+        hist["w"].append(weights)
+    arr = {k: np.array(v) for k, v in hist.items() if k != "w"}
+    return ZuptResult(arr["t"], arr["rph"], arr["rph_sig"], arr["pos"], arr["vel"], arr["ba"], arr["bas"],
+                      arr["bg"], arr["bgs"], arr["dv"], arr["da"], np.array(hist["w"]), c,
+                      np.array([roll0, pitch0, heading]), float(samples.t[n_level]), tuple(use))

@@ -1,0 +1,1 @@
+"""Figures drawn from analysis result objects (matplotlib, Agg backend)."""

@@ -1,0 +1,123 @@
+"""Procedure results and the analysis plumbing shared by ``run``, ``analyze``, batch and dashboard.
+
+A procedure's ``analyze(session, **options)`` is pure and returns a :class:`ProcedureResult`.
+:func:`finish_analysis` then adds provenance to its calibration set, writes the output files
+(``result.json``, ``calibration.json``, ``figures/*.png``) and stores the set and result,
+all or nothing.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from workbench.calset import CalibrationSet, atomic_write_text
+from workbench.session import Session
+
+
+@dataclass
+class ProcedureResult:
+    """What an analysis returns.
+
+    ``result`` is the JSON-ready dict written to ``result.json`` (SI unless a key names its
+    unit, e.g. ``azimuth_deg``); ``calibration`` the partial calibration set this procedure
+    produces (None when its product is not a calibration set); ``payload`` the estimator
+    result objects the figures are drawn from; ``summary`` lines for people, in lab units.
+    """
+
+    procedure: str
+    result: dict = field(default_factory=dict)
+    calibration: CalibrationSet | None = None
+    payload: Any = None
+    summary: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+
+
+def session_provenance(session: Session) -> dict:
+    """Provenance record of one session: id, procedure, SHA-256 of its samples file, rig."""
+    sha = session.samples_sha256()
+    if sha is None:
+        import hashlib
+
+        sha = hashlib.sha256(session.samples.to_csv(index=False).encode()).hexdigest()
+    return {"id": session.id, "procedure": session.procedure, "sha256": sha, "rig": session.rig}
+
+
+def with_session_provenance(result: ProcedureResult, session: Session) -> ProcedureResult:
+    """The result with the session's provenance added to its calibration set."""
+    if result.calibration is None:
+        return result
+    cal = result.calibration.with_provenance([result.procedure], [session_provenance(session)])
+    if result.warnings:
+        notes = dict(cal.notes)
+        notes.setdefault(result.procedure, {})
+        notes[result.procedure] = {**dict(notes[result.procedure]), "warnings": list(result.warnings)}
+        cal = replace(cal, notes=notes)
+    return replace(result, calibration=cal)
+
+
+def _json_default(obj):
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, Path):
+        return str(obj)
+    raise TypeError(f"not JSON-serialisable: {type(obj).__name__}")
+
+
+def result_json(result: ProcedureResult) -> str:
+    """``result.json`` text: procedure, result dict, warnings, calibration id."""
+    doc: Mapping = {
+        "procedure": result.procedure,
+        **result.result,
+        "warnings": list(result.warnings),
+        "calibration_id": result.calibration.id if result.calibration is not None else None,
+    }
+    return json.dumps(doc, indent=2, default=_json_default) + "\n"
+
+
+def write_outputs(result: ProcedureResult, out_dir: Path, figures: Mapping | None = None) -> list[Path]:
+    """Write ``result.json``, ``calibration.json`` and ``figures/<name>.png`` into ``out_dir``."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    written = [atomic_write_text(out_dir / "result.json", result_json(result))]
+    if result.calibration is not None:
+        written.append(result.calibration.save(out_dir / "calibration.json"))
+    if figures:
+        import matplotlib.pyplot as plt
+
+        fig_dir = out_dir / "figures"
+        fig_dir.mkdir(exist_ok=True)
+        for name, fig in figures.items():
+            path = fig_dir / f"{name}.png"
+            tmp = fig_dir / f".{name}.tmp.png"
+            fig.savefig(tmp, dpi=110, bbox_inches="tight")
+            tmp.replace(path)
+            plt.close(fig)
+            written.append(path)
+    return written
+
+
+def run_analysis(proc, session: Session, options: Mapping | None = None, out_dir: Path | None = None,
+                 store=None) -> ProcedureResult:
+    """Analyse ``session`` with procedure module ``proc``; write outputs and store, all or nothing.
+
+    Files go to ``out_dir`` (each written atomically) only after the analysis succeeded; the
+    store receives the session record, the result and its calibration set last, so a failed
+    analysis leaves both untouched.
+    """
+    result = with_session_provenance(proc.analyze(session, **dict(options or {})), session)
+    if out_dir is not None:
+        figs = proc.figures(result) if hasattr(proc, "figures") else None
+        write_outputs(result, Path(out_dir), figs)
+    if store is not None:
+        store.add_session(session.id, session.unit.serial, session.unit.model, result.procedure,
+                          str(session.path or ""), session.samples_sha256() or "", len(session.steps), True)
+        store.add_result(result.procedure, session.id, session.unit.serial, json.loads(result_json(result)),
+                         result.calibration)
+    return result

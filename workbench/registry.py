@@ -1,0 +1,66 @@
+"""Discovery of procedures (``procedures/*.py``) and export formats (``workbench/exports/*.py``).
+
+A procedure module defines ``NAME``, ``TITLE``, ``TRIADS``, ``CAMPAIGN_ORDER``, ``DEFAULTS``,
+``sequence(spec, **options)``, ``analyze(session, **options)`` and ``figures(result)``
+(see ``docs/architecture.md``). An export module defines ``FORMAT``, ``SUFFIX``,
+``DESCRIPTION`` and ``export(calset) -> Export``.
+"""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+from dataclasses import dataclass, field
+from functools import lru_cache
+from types import ModuleType
+
+from workbench.errors import ExportError, ProcedureError
+
+
+@dataclass(frozen=True)
+class Export:
+    """An exported calibration: the file text and what the format could not express."""
+
+    text: str
+    dropped: list[str] = field(default_factory=list)
+
+
+def _modules(package: str) -> list[ModuleType]:
+    pkg = importlib.import_module(package)
+    return [importlib.import_module(f"{package}.{m.name}") for m in pkgutil.iter_modules(pkg.__path__)
+            if not m.name.startswith("_")]
+
+
+@lru_cache(maxsize=1)
+def procedures() -> dict[str, ModuleType]:
+    """All procedure modules by command-line name."""
+    return {m.NAME: m for m in _modules("procedures") if hasattr(m, "NAME") and hasattr(m, "analyze")}
+
+
+def procedure(name: str) -> ModuleType:
+    """The procedure module called ``name``; raises ProcedureError naming the known ones."""
+    procs = procedures()
+    if name not in procs:
+        raise ProcedureError(f"unknown procedure {name!r} (known: {', '.join(sorted(procs)) or 'none'})")
+    return procs[name]
+
+
+def campaign_procedures(triads: set[str]) -> list[ModuleType]:
+    """Procedures of the campaign that apply to a unit with ``triads``, in campaign order."""
+    procs = [m for m in procedures().values() if getattr(m, "CAMPAIGN_ORDER", None) is not None
+             and set(m.TRIADS) <= triads]
+    return sorted(procs, key=lambda m: m.CAMPAIGN_ORDER)
+
+
+@lru_cache(maxsize=1)
+def exporters() -> dict[str, ModuleType]:
+    """All export modules by format name."""
+    return {m.FORMAT: m for m in _modules("workbench.exports") if hasattr(m, "FORMAT")}
+
+
+def exporter(fmt: str) -> ModuleType:
+    """The export module for ``fmt``; raises ExportError naming the known formats."""
+    ex = exporters()
+    if fmt not in ex:
+        raise ExportError(f"unknown export format {fmt!r} (known: {', '.join(sorted(ex))})")
+    return ex[fmt]

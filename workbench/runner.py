@@ -1,0 +1,162 @@
+"""The runner: records a sequence on a rig into a session, step by step.
+
+Every completed step is written at once (``parts/step_NNNNN.parquet`` and the manifest
+``session.json``, both atomically), so a run that is killed leaves every completed step
+readable and ``resume`` continues from the first incomplete step. When the last step is
+done the parts are consolidated into ``samples.parquet``. The rig's limits are checked for
+the whole plan before anything moves.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import uuid
+from collections.abc import Callable
+from datetime import UTC, datetime
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from workbench.calset import Unit
+from workbench.errors import SessionError
+from workbench.sequence import PlannedStep, Sequence
+from workbench.session import FORMAT, Session, StepRecord, load_session, write_manifest
+
+Progress = Callable[[int, int, StepRecord], None]
+PARTS = "parts"
+
+
+def _now() -> str:
+    return datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
+
+
+def _planned_from_dict(d: dict) -> PlannedStep:
+    known = {"kind", "mount", "table_angle", "table_rate", "duration_s", "temperature_c", "label"}
+    return PlannedStep(d["kind"], np.asarray(d["mount"], float), d["table_angle"], d["table_rate"], d["duration_s"],
+                       d["temperature_c"], d.get("label", ""), {k: v for k, v in d.items() if k not in known})
+
+
+class Recording:
+    """A session being recorded (in a folder, or in memory when ``out_dir`` is None)."""
+
+    def __init__(self, out_dir: Path | None, manifest: dict, plan: list[PlannedStep]):
+        self.out_dir = out_dir
+        self.manifest = manifest
+        self.plan = plan
+        self.frames: list[pd.DataFrame] = []
+
+    @property
+    def done(self) -> int:
+        return len(self.manifest["steps"])
+
+    def add(self, samples: pd.DataFrame, record: StepRecord, rig_state: dict) -> None:
+        self.manifest["steps"].append(record.to_dict())
+        self.manifest["rig_state"] = rig_state
+        if self.out_dir is None:
+            self.frames.append(samples)
+            return
+        parts = self.out_dir / PARTS
+        parts.mkdir(exist_ok=True)
+        tmp = parts / f".step_{record.index:05d}.tmp"
+        samples.to_parquet(tmp, index=False)
+        tmp.replace(parts / f"step_{record.index:05d}.parquet")
+        write_manifest(self.out_dir, self.manifest)
+
+    def finish(self) -> Session:
+        self.manifest["complete"] = True
+        if self.out_dir is None:
+            return _in_memory(self.manifest, pd.concat(self.frames, ignore_index=True))
+        df = read_parts(self.out_dir)
+        tmp = self.out_dir / ".samples.parquet.tmp"
+        df.to_parquet(tmp, index=False)
+        tmp.replace(self.out_dir / "samples.parquet")
+        write_manifest(self.out_dir, self.manifest)
+        shutil.rmtree(self.out_dir / PARTS, ignore_errors=True)
+        return load_session(self.out_dir)
+
+
+def read_parts(directory: Path) -> pd.DataFrame:
+    """Concatenate the per-step sample files of an unfinished recording."""
+    files = sorted((directory / PARTS).glob("step_*.parquet"))
+    if not files:
+        raise SessionError(f"{directory}: no recorded steps")
+    return pd.concat([pd.read_parquet(f) for f in files], ignore_index=True)
+
+
+def _in_memory(manifest: dict, df: pd.DataFrame) -> Session:
+    from workbench.session import Site, parse_manifest, validate_samples
+
+    fields, steps = parse_manifest(manifest, "<memory>")
+    validate_samples(df, steps, fields["sample_rate_hz"], "<memory>")
+    s = fields["site"]
+    return Session(fields["id"], Unit(**fields["unit"]), Site(**s), fields["sample_rate_hz"], fields["procedure"],
+                   steps, df, None, fields.get("options", {}), fields.get("rig"), fields.get("created"))
+
+
+def start(sequence: Sequence, rig, unit: Unit, procedure: str, out_dir: Path | None,
+          extra: dict | None = None) -> Recording:
+    """Check the plan against the rig, then create the session folder and its manifest."""
+    plan = sequence.expand()
+    rig.check(plan)
+    manifest = {
+        "format": FORMAT, "id": str(uuid.uuid4()), "unit": {"serial": unit.serial, "model": unit.model},
+        "site": rig.site.to_dict(), "sample_rate_hz": rig.fs, "procedure": procedure,
+        "options": json.loads(json.dumps(dict(sequence.options), default=str)), "rig": rig.name,
+        "created": _now(), "complete": False, "sequence": sequence.to_dict(),
+        "planned": [p.to_dict() for p in plan], "steps": [], **(extra or {}),
+    }
+    if out_dir is not None:
+        out_dir = Path(out_dir)
+        if (out_dir / "session.json").exists():
+            raise SessionError(f"{out_dir}: already holds a session (use --resume to continue it)")
+        out_dir.mkdir(parents=True, exist_ok=True)
+        write_manifest(out_dir, manifest)
+    return Recording(out_dir, manifest, plan)
+
+
+def reopen(out_dir: Path) -> Recording:
+    """Reopen an interrupted recording for ``--resume``."""
+    out_dir = Path(out_dir)
+    path = out_dir / "session.json"
+    if not path.exists():
+        raise SessionError(f"{out_dir}: no session.json to resume")
+    manifest = json.loads(path.read_text())
+    if manifest.get("complete"):
+        raise SessionError(f"{out_dir}: the session is already complete")
+    if "planned" not in manifest:
+        raise SessionError(f"{path}: no planned steps recorded; cannot resume")
+    plan = [_planned_from_dict(p) for p in manifest["planned"]]
+    # keep only steps whose samples reached the disk
+    parts = {int(f.stem.split("_")[1]) for f in (out_dir / PARTS).glob("step_*.parquet")}
+    manifest["steps"] = [s for s in manifest["steps"] if s["index"] in parts]
+    return Recording(out_dir, manifest, plan)
+
+
+def record(recording: Recording, rig, progress: Progress | None = None) -> Session:
+    """Run the remaining planned steps on ``rig``; on any interruption make the rig safe and re-raise."""
+    n = len(recording.plan)
+    try:
+        for i in range(recording.done, n):
+            samples, rec = rig.perform(recording.plan[i], i)
+            recording.add(samples, rec, rig.state.to_dict() if hasattr(rig, "state") else {})
+            if progress is not None:
+                progress(i, n, rec)
+    except BaseException:
+        rig.safe()
+        raise
+    finally:
+        rig.close()
+    return recording.finish()
+
+
+def rig_state_for_resume(recording: Recording):
+    """The saved rig state of an interrupted recording (for the simulated rig)."""
+    from workbench.sim.rig import RigState
+
+    state = recording.manifest.get("rig_state")
+    return None if state is None else RigState(**state)
+
+
+__all__ = ["Recording", "start", "reopen", "record", "read_parts", "rig_state_for_resume"]

@@ -1,0 +1,385 @@
+"""Sessions: one run of a sequence on a unit, as ``session.json`` + ``samples.parquet``.
+
+The format (``workbench-session/1``) is documented in ``docs/formats.md``. A session
+recorded by another tool in this format (``samples.csv`` accepted in place of Parquet) is
+analysed exactly like one recorded by the runner. Loading validates the manifest and the
+samples and raises :class:`SessionError` naming the file, column or step at fault.
+
+Frames: ``mount`` takes body-frame vectors into the table-top frame (x along the table's
+zero, z down); the body-to-NED attitude at table angle ``a`` is
+``Rz(table_zero_azimuth + a) @ mount``.
+"""
+
+from __future__ import annotations
+
+import json
+import uuid
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from scipy.spatial.transform import Rotation
+
+from workbench.calset import Unit, atomic_write_text, file_sha256
+from workbench.earth import normal_gravity, rz
+from workbench.errors import SessionError
+
+FORMAT = "workbench-session/1"
+STEP_KINDS = ("static", "rate", "index", "carousel", "soak", "ramp")
+GYRO = ["gx", "gy", "gz"]
+ACCEL = ["ax", "ay", "az"]
+MAG = ["mx", "my", "mz"]
+REQUIRED_COLUMNS = ["t", "step", *GYRO, *ACCEL]
+OPTIONAL_COLUMNS = [*MAG, "temp", "table_angle", "table_rate"]
+
+
+@dataclass(frozen=True)
+class Site:
+    """Where the rig stands. Angles stored in degrees as in the file; radians via properties."""
+
+    latitude_deg: float
+    longitude_deg: float = 0.0
+    height_m: float = 0.0
+    table_zero_azimuth_deg: float | None = None
+
+    @property
+    def latitude(self) -> float:
+        """Geodetic latitude, rad."""
+        return float(np.radians(self.latitude_deg))
+
+    @property
+    def table_zero_azimuth(self) -> float | None:
+        """Azimuth of the table's zero direction clockwise from true north, rad (None = unknown)."""
+        return None if self.table_zero_azimuth_deg is None else float(np.radians(self.table_zero_azimuth_deg))
+
+    @property
+    def gravity(self) -> float:
+        """Normal gravity magnitude at the site, m/s^2."""
+        return float(normal_gravity(self.latitude, self.height_m))
+
+    def to_dict(self) -> dict:
+        return {"latitude_deg": self.latitude_deg, "longitude_deg": self.longitude_deg,
+                "height_m": self.height_m, "table_zero_azimuth_deg": self.table_zero_azimuth_deg}
+
+
+@dataclass(frozen=True)
+class StepRecord:
+    """What the rig did during one step (a row of ``session.json`` ``steps``).
+
+    ``mount`` (3, 3) body->table-top; ``table_angle`` rad at ``t_start``; ``table_rate`` rad/s
+    commanded (0 when static); ``temperature_c`` the chamber setpoint (None if no chamber);
+    ``extra`` holds any further keys (e.g. ``label``, ``revolutions``, ``index_angle``).
+    """
+
+    index: int
+    kind: str
+    t_start: float
+    t_end: float
+    mount: np.ndarray = field(default_factory=lambda: np.eye(3))
+    table_angle: float = 0.0
+    table_rate: float = 0.0
+    temperature_c: float | None = None
+    label: str = ""
+    extra: Mapping[str, object] = field(default_factory=dict)
+
+    @property
+    def duration(self) -> float:
+        """Step duration, s."""
+        return self.t_end - self.t_start
+
+    def to_dict(self) -> dict:
+        out = {"index": self.index, "kind": self.kind, "t_start": self.t_start, "t_end": self.t_end,
+               "mount": np.asarray(self.mount).tolist(), "table_angle": self.table_angle,
+               "table_rate": self.table_rate, "temperature_c": self.temperature_c, "label": self.label}
+        out.update(self.extra)
+        return out
+
+    @classmethod
+    def from_dict(cls, d: Mapping, source: str = "session.json") -> StepRecord:
+        known = {"index", "kind", "t_start", "t_end", "mount", "table_angle", "table_rate", "temperature_c", "label"}
+        try:
+            idx = int(d["index"])
+        except (KeyError, TypeError, ValueError):
+            raise SessionError(f"{source}: a step has no integer 'index'") from None
+        where = f"{source}: step {idx}"
+        for key in ("kind", "t_start", "t_end"):
+            if key not in d:
+                raise SessionError(f"{where}: missing field {key!r}")
+        if d["kind"] not in STEP_KINDS:
+            raise SessionError(f"{where}: unknown kind {d['kind']!r} (expected one of {', '.join(STEP_KINDS)})")
+        mount = np.array(d.get("mount", np.eye(3)), float)
+        if mount.shape != (3, 3) or not np.all(np.isfinite(mount)):
+            raise SessionError(f"{where}: 'mount' must be a finite 3x3 matrix")
+        if not np.allclose(mount @ mount.T, np.eye(3), atol=1e-6) or np.linalg.det(mount) < 0:
+            raise SessionError(f"{where}: 'mount' is not a rotation matrix")
+        t0, t1 = float(d["t_start"]), float(d["t_end"])
+        if not t1 > t0:
+            raise SessionError(f"{where}: t_end {t1} is not after t_start {t0}")
+        temp = d.get("temperature_c")
+        return cls(idx, d["kind"], t0, t1, mount, float(d.get("table_angle") or 0.0),
+                   float(d.get("table_rate") or 0.0), None if temp is None else float(temp),
+                   str(d.get("label", "")), {k: v for k, v in d.items() if k not in known})
+
+
+@dataclass
+class Session:
+    """A loaded session: manifest fields, step records and the samples table."""
+
+    id: str
+    unit: Unit
+    site: Site
+    sample_rate_hz: float
+    procedure: str
+    steps: list[StepRecord]
+    samples: pd.DataFrame
+    path: Path | None = None
+    options: Mapping[str, object] = field(default_factory=dict)
+    rig: str | None = None
+    created: str | None = None
+
+    # -- access ---------------------------------------------------------------------
+    def step(self, index: int) -> StepRecord:
+        """The step record with ``index``."""
+        for s in self.steps:
+            if s.index == index:
+                return s
+        raise SessionError(f"{self.name}: no step {index}")
+
+    def step_samples(self, index: int) -> pd.DataFrame:
+        """Samples labelled with step ``index``."""
+        return self.samples[self.samples["step"].to_numpy() == index]
+
+    def steps_of_kind(self, *kinds: str) -> list[StepRecord]:
+        """Step records whose kind is one of ``kinds``."""
+        return [s for s in self.steps if s.kind in kinds]
+
+    @property
+    def has_mag(self) -> bool:
+        return all(c in self.samples.columns for c in MAG)
+
+    @property
+    def name(self) -> str:
+        return str(self.path) if self.path is not None else f"session {self.id}"
+
+    def gyro(self, index: int | None = None) -> np.ndarray:
+        """Gyro samples (N, 3) rad/s, body frame; all samples or step ``index``."""
+        return self._cols(GYRO, index)
+
+    def accel(self, index: int | None = None) -> np.ndarray:
+        """Accelerometer samples (N, 3) m/s^2, body frame."""
+        return self._cols(ACCEL, index)
+
+    def mag(self, index: int | None = None) -> np.ndarray:
+        """Magnetometer samples (N, 3) µT, body frame."""
+        if not self.has_mag:
+            raise SessionError(f"{self.name}: samples have no magnetometer columns mx, my, mz")
+        return self._cols(MAG, index)
+
+    def _cols(self, cols: list[str], index: int | None) -> np.ndarray:
+        df = self.samples if index is None else self.step_samples(index)
+        return df[cols].to_numpy(float)
+
+    def attitude(self, step: StepRecord, table_angle: float | np.ndarray | None = None) -> Rotation:
+        """Body-to-NED rotation at ``table_angle`` (rad; default the step's start angle).
+
+        Uses the site's table zero azimuth; raises if it is unknown (gravity-only analyses
+        should use :meth:`table_attitude`, which does not need it).
+        """
+        az = self.site.table_zero_azimuth
+        if az is None:
+            raise SessionError(f"{self.name}: site.table_zero_azimuth_deg is unknown (null)")
+        return rz(az) * self.table_attitude(step, table_angle)
+
+    def table_attitude(self, step: StepRecord, table_angle: float | np.ndarray | None = None) -> Rotation:
+        """Body-to-table-zero-frame rotation (a level frame whose x is the table's zero)."""
+        angle = step.table_angle if table_angle is None else table_angle
+        return rz(angle) * Rotation.from_matrix(step.mount)
+
+    def samples_sha256(self) -> str | None:
+        """SHA-256 of the samples file (None for a session that is not on disk)."""
+        f = samples_file(self.path) if self.path is not None else None
+        return file_sha256(f) if f is not None else None
+
+    def manifest(self) -> dict:
+        """The ``session.json`` dict."""
+        return {
+            "format": FORMAT, "id": self.id,
+            "unit": {"serial": self.unit.serial, "model": self.unit.model},
+            "site": self.site.to_dict(), "sample_rate_hz": self.sample_rate_hz,
+            "procedure": self.procedure, "options": dict(self.options), "rig": self.rig,
+            "created": self.created, "steps": [s.to_dict() for s in self.steps],
+        }
+
+
+def samples_file(directory: Path) -> Path | None:
+    """The samples file of a session folder (Parquet preferred, then CSV), or None."""
+    for name in ("samples.parquet", "samples.csv"):
+        if (directory / name).exists():
+            return directory / name
+    return None
+
+
+def _load_manifest(directory: Path) -> dict:
+    mpath = directory / "session.json"
+    if not directory.is_dir():
+        raise SessionError(f"{directory}: not a session folder")
+    if not mpath.exists():
+        raise SessionError(f"{directory}: no session.json")
+    try:
+        data = json.loads(mpath.read_text())
+    except json.JSONDecodeError as exc:
+        raise SessionError(f"{mpath}: not valid JSON (line {exc.lineno}: {exc.msg})") from None
+    fmt = data.get("format")
+    if fmt != FORMAT:
+        raise SessionError(f"{mpath}: format {fmt!r} is not {FORMAT!r}")
+    return data
+
+
+def parse_manifest(data: Mapping, source: str) -> tuple[dict, list[StepRecord]]:
+    """Validate a manifest dict; returns (fields, step records)."""
+    for key in ("unit", "site", "sample_rate_hz", "steps"):
+        if key not in data:
+            raise SessionError(f"{source}: missing field {key!r}")
+    site = data["site"]
+    if not isinstance(site, Mapping) or site.get("latitude_deg") is None:
+        raise SessionError(f"{source}: site.latitude_deg is missing")
+    lat = float(site["latitude_deg"])
+    if not -90 <= lat <= 90:
+        raise SessionError(f"{source}: site.latitude_deg {lat} is outside -90..90")
+    rate = data["sample_rate_hz"]
+    if not isinstance(rate, (int, float)) or not rate > 0:
+        raise SessionError(f"{source}: sample_rate_hz must be a positive number")
+    steps = [StepRecord.from_dict(s, source) for s in data["steps"]]
+    idx = [s.index for s in steps]
+    if len(set(idx)) != len(idx):
+        raise SessionError(f"{source}: duplicate step index")
+    ordered = sorted(steps, key=lambda s: s.t_start)
+    for a, b in zip(ordered, ordered[1:]):
+        if b.t_start < a.t_end - 1e-9:
+            raise SessionError(f"{source}: step {b.index} overlaps step {a.index}")
+    return dict(data), steps
+
+
+def validate_samples(df: pd.DataFrame, steps: Sequence[StepRecord], sample_rate_hz: float, source: str,
+                     require_complete: bool = True) -> pd.DataFrame:
+    """Check columns, finiteness, time order and step labels; raise SessionError naming the problem."""
+    missing = [c for c in REQUIRED_COLUMNS if c not in df.columns]
+    if missing:
+        raise SessionError(f"{source}: missing column(s) {', '.join(missing)}")
+    if len(df) == 0:
+        raise SessionError(f"{source}: no samples")
+    for col in [c for c in REQUIRED_COLUMNS + OPTIONAL_COLUMNS if c in df.columns]:
+        values = df[col].to_numpy(float)
+        bad = ~np.isfinite(values)
+        if bad.any():
+            row = int(np.argmax(bad))
+            raise SessionError(f"{source}: column {col}: NaN or infinite value at row {row} (t={df['t'].iloc[row]})")
+    t = df["t"].to_numpy(float)
+    dt = np.diff(t)
+    if np.any(dt <= 0):
+        row = int(np.argmax(dt <= 0)) + 1
+        raise SessionError(f"{source}: column t: duplicate or non-increasing time at row {row} (t={t[row]})")
+    nominal = 1.0 / sample_rate_hz
+    gap = dt > 2.5 * nominal
+    if gap.any():
+        row = int(np.argmax(gap)) + 1
+        raise SessionError(f"{source}: column t: gap of {dt[row - 1]:.4g} s before row {row} (t={t[row]}), "
+                           f"sample interval {nominal:.4g} s")
+    labels = df["step"].to_numpy()
+    known = {s.index for s in steps}
+    unknown = set(np.unique(labels)) - known - {-1}
+    if unknown:
+        raise SessionError(f"{source}: column step: label(s) {sorted(unknown)[:5]} match no step in session.json")
+    for s in steps:
+        sel = labels == s.index
+        if s.t_start < t[0] - 1.5 * nominal or s.t_end > t[-1] + 1.5 * nominal:
+            raise SessionError(f"{source}: step {s.index} ({s.t_start:.3f}..{s.t_end:.3f} s) points outside "
+                               f"the samples ({t[0]:.3f}..{t[-1]:.3f} s)")
+        if require_complete and not sel.any():
+            raise SessionError(f"{source}: step {s.index} ({s.kind}) has no samples")
+        if sel.any():
+            ts = t[sel]
+            if ts[0] < s.t_start - 1.5 * nominal or ts[-1] > s.t_end + 1.5 * nominal:
+                raise SessionError(f"{source}: step {s.index}: samples at t={ts[0]:.3f}..{ts[-1]:.3f} "
+                                   f"fall outside the step's t_start..t_end {s.t_start:.3f}..{s.t_end:.3f}")
+    _check_units(df, source)
+    return df
+
+
+def _check_units(df: pd.DataFrame, source: str) -> None:
+    """Flag physically implausible magnitudes (wrong declared units)."""
+    norm = np.median(np.linalg.norm(df[ACCEL].to_numpy(float), axis=1))
+    if norm < 3.0 or norm > 30.0:
+        raise SessionError(f"{source}: columns ax, ay, az: median |a| = {norm:.3g}, not m/s^2 "
+                           "(given in g or mg? convert with an import profile)")
+    gmax = np.abs(df[GYRO].to_numpy(float)).max()
+    if gmax > 60.0:
+        raise SessionError(f"{source}: columns gx, gy, gz: |rate| up to {gmax:.3g}, not rad/s (deg/s?)")
+    if all(c in df.columns for c in MAG):
+        mn = np.median(np.linalg.norm(df[MAG].to_numpy(float), axis=1))
+        if mn < 1.0 or mn > 1000.0:
+            raise SessionError(f"{source}: columns mx, my, mz: median |m| = {mn:.3g}, not µT (gauss or nT?)")
+
+
+def read_samples(path: Path) -> pd.DataFrame:
+    """Read a samples file (Parquet or CSV) into a DataFrame."""
+    try:
+        if path.suffix == ".parquet":
+            return pd.read_parquet(path)
+        return pd.read_csv(path)
+    except Exception as exc:  # pyarrow / pandas raise many types for unreadable files
+        raise SessionError(f"{path}: cannot read samples ({type(exc).__name__}: {str(exc)[:120]})") from None
+
+
+def load_session(directory: str | Path, require_complete: bool = True) -> Session:
+    """Load and validate a session folder (``session.json`` + ``samples.parquet|csv``)."""
+    directory = Path(directory)
+    data = _load_manifest(directory)
+    mpath = directory / "session.json"
+    fields, steps = parse_manifest(data, str(mpath))
+    spath = samples_file(directory)
+    if spath is not None:
+        df = read_samples(spath)
+    elif (directory / "parts").is_dir():  # an interrupted recording: its completed steps
+        spath = directory / "parts"
+        files = sorted(spath.glob("step_*.parquet"))
+        done = {s.index for s in steps}
+        df = pd.concat([read_samples(f) for f in files if int(f.stem.split("_")[1]) in done] or [pd.DataFrame()],
+                       ignore_index=True)
+    else:
+        raise SessionError(f"{directory}: no samples.parquet or samples.csv")
+    validate_samples(df, steps, float(fields["sample_rate_hz"]), str(spath), require_complete)
+    u, s = fields["unit"], fields["site"]
+    return Session(
+        id=str(fields.get("id") or uuid.uuid5(uuid.NAMESPACE_URL, str(directory.resolve()))),
+        unit=Unit(str(u.get("serial", "")), str(u.get("model", ""))),
+        site=Site(float(s["latitude_deg"]), float(s.get("longitude_deg") or 0.0), float(s.get("height_m") or 0.0),
+                  None if s.get("table_zero_azimuth_deg") is None else float(s["table_zero_azimuth_deg"])),
+        sample_rate_hz=float(fields["sample_rate_hz"]),
+        procedure=str(fields.get("procedure", "")),
+        steps=steps,
+        samples=df.reset_index(drop=True),
+        path=directory,
+        options=fields.get("options") or {},
+        rig=fields.get("rig"),
+        created=fields.get("created"),
+    )
+
+
+def write_manifest(directory: Path, manifest: Mapping) -> None:
+    """Write ``session.json`` atomically."""
+    atomic_write_text(directory / "session.json", json.dumps(manifest, indent=1) + "\n")
+
+
+def write_session(session: Session, directory: str | Path) -> Path:
+    """Write a whole in-memory session to ``directory`` (Parquet samples + manifest)."""
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    tmp = directory / ".samples.parquet.tmp"
+    session.samples.to_parquet(tmp, index=False)
+    tmp.replace(directory / "samples.parquet")
+    write_manifest(directory, session.manifest())
+    session.path = directory
+    return directory

@@ -1,0 +1,184 @@
+"""Stateful, vectorised noise generators of the virtual sensor (IEEE 952 terms).
+
+Each generator keeps its state between calls, so a record generated in chunks is
+sample-for-sample identical to one generated in a single call with the same seed (the
+random numbers are drawn as a row-major ``(n, channels)`` block, which numpy's
+``Generator`` fills sequentially, and every filter carries its state).
+
+Terms, per channel, in the channel's SI unit ``u`` (rad/s, m/s^2, µT):
+
+* white noise of density ``N`` (u/√Hz, e.g. rad/s/√Hz = rad/√s): AVAR = N² / τ;
+* bias instability ``B`` (u): flicker noise, PSD ``B² / (2π f)``, AVAR flat at
+  ``2 ln2 / π · B²`` (ADEV floor 0.664 B), made by a cascade of first-order pole/zero
+  sections (two per decade) driven by one white sequence; the ADEV is flat to ±1 % from
+  ``10 dt`` to ``1e5 s`` (:func:`flicker_design`);
+* rate random walk ``K`` (u/√s, i.e. u/s/√Hz): AVAR = K² τ / 3;
+* quantization ``Q`` (u·s, e.g. rad, m/s): the *integrated* output (angle, velocity) is
+  quantized with step ``√12 · Q``, the remainder carried to the next sample, giving
+  AVAR = 3 Q² / τ² (IEEE 952 Q is the RMS of the integrated quantization error).
+
+References: IEEE Std 952-1997 annex C (Allan variance of the noise terms); thesis
+(shared/seeds/000_...) sec. 1.2 tables 1.1, 1.2 (ARW / VRW and bias instability).
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+from scipy.signal import sosfilt
+
+FLICKER_AVAR = 2.0 * np.log(2.0) / np.pi  # AVAR of flicker noise per B², IEEE 952 (ADEV = 0.664 B)
+FLICKER_TAU_MAX_S = 1.0e5  # s, upper end of the flat ADEV of the bias-instability process
+FLICKER_SECTIONS_PER_DECADE = 2
+
+
+def flicker_tau_range(dt: float) -> tuple[float, float]:
+    """(τ_min, τ_max), s, over which the bias-instability ADEV is flat at sample period ``dt`` s."""
+    return 10.0 * dt, FLICKER_TAU_MAX_S
+
+
+def _flicker_corners(dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Pole and zero frequencies (Hz) of the flicker cascade: poles two per decade from a
+    third of ``1/(2π τ_max)`` to three times ``1/(2π τ_min)``, zeros half-way between poles."""
+    tau_min, tau_max = flicker_tau_range(dt)
+    f_lo, f_hi = 1.0 / (2 * np.pi * tau_max) / 3.0, 3.0 / (2 * np.pi * tau_min)
+    n_poles = int(np.ceil(np.log10(f_hi / f_lo) * FLICKER_SECTIONS_PER_DECADE)) + 1
+    poles = f_lo * 10.0 ** (np.arange(n_poles) / FLICKER_SECTIONS_PER_DECADE)
+    zeros = poles[:-1] * 10.0 ** (0.5 / FLICKER_SECTIONS_PER_DECADE)
+    return poles, zeros
+
+
+def _cascade_sos(dt: float) -> np.ndarray:
+    """Unit-gain first-order sections (matched z-transform of the corners), shape (P, 6)."""
+    poles, zeros = _flicker_corners(dt)
+    sos = np.zeros((poles.size, 6))
+    sos[:, 0] = 1.0
+    sos[:, 3] = 1.0
+    sos[:, 4] = -np.exp(-2 * np.pi * poles * dt)
+    sos[: zeros.size, 1] = -np.exp(-2 * np.pi * zeros * dt)
+    return sos
+
+
+def cascade_avar(sos: np.ndarray, dt: float, taus: np.ndarray) -> np.ndarray:
+    """Allan variance at ``taus`` (s) of the output of ``sos`` driven by unit-variance
+    white noise at period ``dt``: AVAR(τ) = ∫ S(f) |H_A(f)|² df with the discrete
+    averaging kernel |H_A|² = 2 sin⁴(π f τ) / (m² sin²(π f dt)), m = τ / dt."""
+    taus = np.asarray(taus, float)
+    f_pole = -np.log(np.clip(-sos[:, 4], 1e-300, None)).min() / (2 * np.pi * dt)  # lowest corner, Hz
+    f_min = 1e-3 * min(f_pole, 1.0 / taus.max())
+    f = np.logspace(np.log10(f_min), np.log10(0.5 / dt), 40000)
+    e = np.exp(-2j * np.pi * f * dt)
+    h2 = np.ones(f.size)
+    for b0, b1, _, _, a1, _ in sos:
+        h2 *= np.abs(b0 + b1 * e) ** 2 / np.abs(1.0 + a1 * e) ** 2
+    psd = 2.0 * dt * h2  # one-sided PSD of the output, per unit input variance
+    out = np.empty(len(taus))
+    for i, tau in enumerate(taus):
+        x = np.pi * f * tau
+        sin4 = np.where(x > 30.0, 3.0 / 8.0, np.sin(x) ** 4)  # mean of sin⁴ where it oscillates faster than the grid
+        kernel = 2.0 * sin4 / ((tau / dt) ** 2 * np.sin(np.pi * f * dt) ** 2)
+        out[i] = np.trapezoid(psd * kernel * f, np.log(f))
+    return out
+
+
+@lru_cache(maxsize=16)
+def flicker_design(dt: float) -> tuple[np.ndarray, float]:
+    """Second-order-section cascade (P, 6) and the input gain that make unit-B flicker noise.
+
+    Driving the cascade with white noise of standard deviation ``gain · B`` gives a process
+    whose ADEV is 0.664 B (geometric mean over :func:`flicker_tau_range`), flat within ±1 %
+    from 3 τ_min to τ_max / 3 and within ±5 % over the whole range.
+    """
+    sos = _cascade_sos(dt)
+    tau_min, tau_max = flicker_tau_range(dt)
+    taus = np.logspace(np.log10(tau_min), np.log10(tau_max), 25)
+    level = np.exp(np.mean(0.5 * np.log(cascade_avar(sos, dt, taus))))
+    sos.setflags(write=False)
+    return sos, float(np.sqrt(FLICKER_AVAR) / level)
+
+
+class NoiseProcess:
+    """Additive noise of ``C`` channels: white + bias instability + rate random walk.
+
+    Parameters
+    ----------
+    white : (C,) density, u/√Hz
+    bias_instability : (C,) B, u
+    rrw : (C,) K, u/√s
+    dt : sample period, s
+    seed : seed of the noise; each term draws from its own child stream, one ``(n, C)``
+        block per call, so a term that is zero does not change the others' samples
+
+    The bias-instability and rate-random-walk states start at zero: the unit's turn-on
+    bias is the deterministic bias, and the slow processes wander from it.
+    """
+
+    def __init__(self, white: np.ndarray, bias_instability: np.ndarray, rrw: np.ndarray, dt: float,
+                 seed: int | np.random.SeedSequence) -> None:
+        self.white_std = np.asarray(white, float) / np.sqrt(dt)  # per-sample std, u
+        self.rrw_std = np.asarray(rrw, float) * np.sqrt(dt)  # per-sample rate step, u
+        sos, gain = flicker_design(float(dt))
+        self.sos = sos.copy()  # sosfilt needs a writable array
+        self.flicker_std = gain * np.asarray(bias_instability, float)
+        self.channels = self.white_std.size
+        seq = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
+        self._rng_white, self._rng_flicker, self._rng_rrw = map(np.random.default_rng, seq.spawn(3))
+        self._zi_flicker = np.zeros((self.sos.shape[0], self.channels, 2))
+        self._rrw_state = np.zeros(self.channels)
+
+    def generate(self, n: int) -> np.ndarray:
+        """Next ``n`` samples of the noise, (n, C), u."""
+        out = self._rng_white.standard_normal((n, self.channels))
+        out *= self.white_std
+        if np.any(self.flicker_std):
+            drive = np.ascontiguousarray(self._rng_flicker.standard_normal((n, self.channels)).T)
+            flick, self._zi_flicker = sosfilt(self.sos, drive, axis=-1, zi=self._zi_flicker)
+            out += flick.T * self.flicker_std
+        if np.any(self.rrw_std):
+            steps = self._rng_rrw.standard_normal((n, self.channels)) * self.rrw_std
+            walk = np.cumsum(np.vstack([self._rrw_state, steps]), axis=0)[1:]  # sequential: chunking-exact
+            self._rrw_state = walk[-1]
+            out += walk
+        return out
+
+
+class IntegratedQuantizer:
+    """Quantizes the integral of a (n, C) signal with step ``√12 · Q`` (IEEE 952 Q, u·s).
+
+    Output sample k is ``(floor(S_k / q) - floor(S_{k-1} / q)) · q / dt`` where ``S`` is the
+    running integral, so the quantization error never accumulates (as in a delta-angle /
+    delta-velocity output). Channels with Q = 0 pass through unchanged.
+    """
+
+    def __init__(self, quantization: np.ndarray, dt: float) -> None:
+        self.step = np.sqrt(12.0) * np.asarray(quantization, float)
+        self.dt = dt
+        self.active = self.step > 0
+        self._integral = np.zeros(int(self.active.sum()))
+        self._count = np.zeros(int(self.active.sum()))
+
+    def apply(self, y: np.ndarray) -> np.ndarray:
+        """Quantized copy of ``y`` (n, C), u."""
+        if not np.any(self.active):
+            return y
+        out = y.copy()
+        q = self.step[self.active]
+        inc = np.vstack([self._integral, y[:, self.active] * self.dt])
+        integral = np.cumsum(inc, axis=0)[1:]
+        counts = np.floor(integral / q)
+        out[:, self.active] = np.diff(np.vstack([self._count, counts]), axis=0) * (q / self.dt)
+        self._integral, self._count = integral[-1], counts[-1]
+        return out
+
+
+def round_to_resolution(y: np.ndarray, resolution: np.ndarray) -> np.ndarray:
+    """Round each channel of ``y`` (n, C) to its output LSB ``resolution`` (C,), u; 0 = none.
+
+    For noise well above one LSB this adds white noise of variance LSB² / 12 per sample.
+    """
+    res = np.asarray(resolution, float)
+    if not np.any(res):
+        return y
+    safe = np.where(res > 0, res, 1.0)
+    return np.where(res > 0, np.round(y / safe) * safe, y)

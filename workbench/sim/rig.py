@@ -1,0 +1,260 @@
+"""The simulated rig: a level single-axis turntable with a mounting fixture, in a climatic chamber.
+
+It turns a :class:`~workbench.sequence.PlannedStep` into the true motion and environment of
+the unit (table angle and rate, body-frame angular rate, specific force and magnetic field,
+air and unit temperature) and passes them through the virtual IMU. The truth uses the site's
+latitude: normal gravity and Earth rate in NED, and the site's magnetic field.
+
+Motion between steps (remounting, moving to a new table angle, accelerating to a rate,
+settling) is recorded as transition samples labelled ``step = -1``. Each static step carries a
+random fixture/positioning error (a small rotation, 1-sigma ``positioning_error``) that the
+session does not know, as on a real table.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+from scipy.signal import lfilter
+from scipy.spatial.transform import Rotation
+
+from workbench.earth import earth_rate_ned, normal_gravity
+from workbench.errors import RigError
+from workbench.rigconfig import RigConfig, check_plan
+from workbench.sequence import PlannedStep
+from workbench.session import StepRecord
+
+_SOAK_CHUNK_S = 60.0
+
+
+@dataclass
+class RigState:
+    """Where the rig is between steps (saved in the session for ``--resume``)."""
+
+    sample: int = 0  # index of the next sample (t = sample / fs)
+    table_angle: float = 0.0  # rad, wrapped to [0, 2 pi)
+    table_rate: float = 0.0  # rad/s
+    mount: list | None = None
+    air_c: float = 23.0
+    unit_c: float = 23.0
+    chamber_target_c: float = 23.0
+    chamber_rate_c_per_min: float = 5.0
+
+    def to_dict(self) -> dict:
+        return dict(self.__dict__)
+
+
+class SimRig:
+    """Simulated turntable + chamber driving a :class:`~workbench.sim.sensor.VirtualIMU`."""
+
+    driver = "sim"
+
+    def __init__(self, config: RigConfig, truth, seed: int, state: RigState | None = None):
+        from workbench.sim.sensor import VirtualIMU
+
+        self.config = config
+        self.name = config.name
+        self.site = config.site
+        self.truth = truth
+        self.fs = float(truth.sample_rate_hz)
+        self.seed = int(seed)
+        self.imu = VirtualIMU(truth, seed)
+        self.rng = np.random.default_rng([self.seed, 7])
+        c0 = config.chamber.initial_c
+        self.state = state or RigState(air_c=c0, unit_c=c0, chamber_target_c=c0,
+                                       chamber_rate_c_per_min=config.chamber.max_ramp_c_per_min,
+                                       mount=np.eye(3).tolist())
+        lat = self.site.latitude
+        self._g = float(normal_gravity(lat, self.site.height_m))
+        self._wie = earth_rate_ned(lat)
+        self._az0 = self.site.table_zero_azimuth or 0.0
+        self._mag = config.magnetic_field_ned if "mag" in truth.triads else None
+
+    # -- interface shared with real rigs ---------------------------------------------
+    def check(self, plan: list[PlannedStep]) -> None:
+        """Raise RigLimitError if any planned step is outside the rig's limits."""
+        check_plan(plan, self.config)
+
+    def identify(self) -> dict:
+        """Identity and state, without moving anything."""
+        return {"driver": self.driver, "name": self.name, "table_angle_deg": float(np.degrees(self.state.table_angle)),
+                "air_c": self.state.air_c, "unit_c": self.state.unit_c}
+
+    def safe(self) -> None:
+        """Stop the table and send the chamber to its safe setpoint (instant in simulation)."""
+        self.state.table_rate = 0.0
+        self.state.chamber_target_c = self.config.chamber.safe_c
+
+    def close(self) -> None:
+        """Nothing to release in simulation."""
+
+    def perform(self, planned: PlannedStep, index: int) -> tuple[pd.DataFrame, StepRecord]:
+        """Run one planned step: the transition into it (step -1) and the step itself.
+
+        Returns the samples (transition and step, in time order) and the step's record.
+        """
+        parts = [self._transition(planned)]
+        st = self.state
+        t_start = st.sample / self.fs
+        if planned.temperature_c is not None and planned.kind in ("soak", "ramp"):
+            st.chamber_target_c = planned.extra.get("ramp_to_c", planned.temperature_c)
+            st.chamber_rate_c_per_min = abs(planned.extra.get("ramp_rate_c_per_min",
+                                                              self.config.chamber.max_ramp_c_per_min))
+        error = self._fixture_error()
+        start_angle = st.table_angle
+        if planned.kind == "soak":
+            parts.append(self._soak(planned, index, error))
+        elif planned.kind == "index":
+            parts.append(self._index_move(planned, index, error))
+        else:
+            n = max(1, int(round(planned.duration_s * self.fs)))
+            rate = planned.table_rate if planned.kind in ("rate", "carousel") else 0.0
+            parts.append(self._segment(n, index, planned.mount, rate_profile=np.full(n, rate), error=error))
+        samples = pd.concat(parts, ignore_index=True)
+        t_end = st.sample / self.fs
+        record = StepRecord(index, planned.kind, t_start, t_end - 0.5 / self.fs, np.asarray(planned.mount),
+                            float(start_angle), float(planned.table_rate), planned.temperature_c, planned.label,
+                            dict(planned.extra))
+        return samples, record
+
+    # -- motion ----------------------------------------------------------------------
+    def _fixture_error(self) -> Rotation:
+        sigma = self.config.turntable.positioning_error
+        return Rotation.from_rotvec(self.rng.normal(0.0, sigma, 3))
+
+    def _transition(self, planned: PlannedStep) -> pd.DataFrame:
+        """Decelerate, remount, move to the step's angle, accelerate to its rate, settle (step -1)."""
+        st, tt = self.state, self.config.turntable
+        profiles = []
+        if st.table_rate != 0.0 and not (planned.kind in ("rate", "carousel") and planned.table_rate == st.table_rate):
+            profiles.append(_ramp_rate(st.table_rate, 0.0, tt.max_accel, self.fs))
+        mount_now = np.asarray(st.mount)
+        target_rate = planned.table_rate if planned.kind in ("rate", "carousel") else 0.0
+        moving_angle = planned.kind in ("static", "soak", "ramp", "index")
+        if moving_angle:
+            delta = _wrap_pi(planned.table_angle - st.table_angle)
+            if abs(delta) > 1e-9:
+                profiles.append(_move(delta, min(tt.max_rate, np.radians(60.0)), tt.max_accel, self.fs))
+        if target_rate != 0.0 and st.table_rate != target_rate:
+            profiles.append(_ramp_rate(0.0, target_rate, tt.max_accel, self.fs))
+        settle = np.full(int(round(tt.settle_s * self.fs)), target_rate)
+        rate = np.concatenate([*profiles, settle]) if profiles or len(settle) else np.zeros(0)
+        if not np.allclose(mount_now, planned.mount):
+            mount_now = np.asarray(planned.mount)  # remounted by hand: instantaneous in simulation
+        if len(rate) == 0:
+            return pd.DataFrame()
+        return self._segment(len(rate), -1, mount_now, rate_profile=rate, error=Rotation.identity())
+
+    def _index_move(self, planned: PlannedStep, index: int, error: Rotation) -> pd.DataFrame:
+        angle = planned.extra["index_angle"]
+        rate = _move(angle, abs(planned.table_rate), self.config.turntable.max_accel, self.fs)
+        return self._segment(len(rate), index, planned.mount, rate_profile=rate, error=error)
+
+    def _soak(self, planned: PlannedStep, index: int, error: Rotation) -> pd.DataFrame:
+        tol = planned.extra.get("settle_tol_c_per_min", 0.05)
+        window = planned.extra.get("settle_window_s", 120.0)
+        chunks, elapsed = [], 0.0
+        n = int(round(_SOAK_CHUNK_S * self.fs))
+        history_t, history_c = [], []
+        while True:
+            chunk = self._segment(n, index, planned.mount, rate_profile=np.zeros(n), error=error)
+            chunks.append(chunk)
+            elapsed += _SOAK_CHUNK_S
+            history_t.append(chunk["t"].to_numpy()[-1])
+            history_c.append(float(chunk["temp"].to_numpy()[-int(self.fs):].mean()))
+            if elapsed >= window and abs(self.state.air_c - planned.temperature_c) < 1e-9:
+                k = int(np.ceil(window / _SOAK_CHUNK_S))
+                if len(history_c) > k:
+                    slope = abs(history_c[-1] - history_c[-1 - k]) / (history_t[-1] - history_t[-1 - k]) * 60
+                    if slope < tol:
+                        break
+            if elapsed >= planned.duration_s:
+                raise RigError(f"rig {self.name}: step {index} (soak to {planned.temperature_c:.1f} °C): "
+                               f"unit temperature did not settle within {planned.duration_s:.0f} s "
+                               f"(still {self.state.unit_c:.2f} °C)")
+        return pd.concat(chunks, ignore_index=True)
+
+    def _segment(self, n: int, step: int, mount, rate_profile: np.ndarray, error: Rotation) -> pd.DataFrame:
+        """Simulate ``n`` samples with the given table-rate profile (rad/s per sample)."""
+        st, fs = self.state, self.fs
+        k = st.sample + np.arange(n)
+        t = k / fs
+        # table angle: trapezoidal integration of the rate profile from the current angle
+        prev = np.concatenate([[st.table_rate], rate_profile[:-1]])
+        angle = st.table_angle + np.cumsum(0.5 * (prev + rate_profile)) / fs
+        # truth in body frame: C_bn = Rz(az0 + angle) @ E @ mount, so v_b = (E mount)^T Rz^T v_n
+        m_true = error.as_matrix() @ np.asarray(mount)
+        psi = self._az0 + angle
+        c, s = np.cos(psi), np.sin(psi)
+
+        def ned_to_body(v_ned: np.ndarray) -> np.ndarray:
+            v = np.broadcast_to(v_ned, (n, 3))
+            vt = np.stack([c * v[:, 0] + s * v[:, 1], -s * v[:, 0] + c * v[:, 1], v[:, 2]], axis=1)
+            return vt @ m_true  # row-vector form of m_true^T @ vt
+
+        omega_ned = np.empty((n, 3))
+        omega_ned[:] = self._wie
+        omega_ned[:, 2] += rate_profile
+        omega_b = ned_to_body(omega_ned)
+        f_b = ned_to_body(np.array([0.0, 0.0, -self._g]))
+        m_b = ned_to_body(self._mag) if self._mag is not None else None
+        air, unit = self._temperatures(n)
+        out = self.imu.measure(omega_b, f_b, m_b, unit)
+        res = self.config.turntable.encoder_resolution
+        data = {"t": t, "step": np.full(n, step, dtype=np.int64)}
+        data.update({c: out["gyro"][:, i] for i, c in enumerate(("gx", "gy", "gz"))})
+        data.update({c: out["accel"][:, i] for i, c in enumerate(("ax", "ay", "az"))})
+        if out.get("mag") is not None:
+            data.update({c: out["mag"][:, i] for i, c in enumerate(("mx", "my", "mz"))})
+        data["temp"] = out["temp"]
+        data["table_angle"] = np.mod(np.round(angle / res) * res, 2 * np.pi)
+        data["table_rate"] = rate_profile
+        st.sample += n
+        st.table_angle = float(np.mod(angle[-1], 2 * np.pi))
+        st.table_rate = float(rate_profile[-1])
+        st.mount = np.asarray(mount).tolist()
+        return pd.DataFrame(data)
+
+    def _temperatures(self, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """Air temperature (moving to the chamber target at its ramp rate) and the unit's lag."""
+        st = self.state
+        dt = 1.0 / self.fs
+        step = st.chamber_rate_c_per_min / 60.0 * dt * np.arange(1, n + 1)
+        if st.chamber_target_c >= st.air_c:
+            air = np.minimum(st.air_c + step, st.chamber_target_c)
+        else:
+            air = np.maximum(st.air_c - step, st.chamber_target_c)
+        tau = float(self.truth.thermal_time_constant_s)
+        alpha = np.exp(-dt / tau)
+        unit, _ = lfilter([1 - alpha], [1, -alpha], air, zi=[alpha * st.unit_c])
+        st.air_c, st.unit_c = float(air[-1]), float(unit[-1])
+        return air, unit
+
+
+def _ramp_rate(r0: float, r1: float, accel: float, fs: float) -> np.ndarray:
+    """Rate profile (rad/s per sample) from ``r0`` to ``r1`` at the acceleration limit."""
+    n = max(1, int(np.ceil(abs(r1 - r0) / accel * fs)))
+    return np.linspace(r0, r1, n + 1)[1:]
+
+
+def _move(delta: float, max_rate: float, accel: float, fs: float) -> np.ndarray:
+    """Rate profile of a rest-to-rest move by ``delta`` rad (trapezoid or triangle), exact in angle."""
+    if abs(delta) < 1e-12:
+        return np.zeros(1)
+    peak = min(max_rate, np.sqrt(abs(delta) * accel))
+    t_acc = peak / accel
+    t_total = abs(delta) / peak + t_acc
+    n = max(2, int(np.ceil(t_total * fs)))
+    t = np.arange(1, n + 1) / fs
+    scale = t_total / (n / fs)
+    tt = t * scale
+    prof = np.minimum.reduce([tt / t_acc, np.ones(n), (t_total - tt) / t_acc]).clip(0.0, 1.0)
+    prev = np.concatenate([[0.0], prof[:-1]])
+    area = np.sum(0.5 * (prev + prof)) / fs
+    return np.sign(delta) * prof * abs(delta) / area
+
+
+def _wrap_pi(a: float) -> float:
+    return float((a + np.pi) % (2 * np.pi) - np.pi)

@@ -1,0 +1,288 @@
+"""The store: units, calibration sets, sessions and analysis results in a SQL database.
+
+SQLAlchemy 2 over any URL; the embedded default is SQLite at ``./workbench.db``
+(``--db`` / ``WORKBENCH_DB`` override it). A stored calibration set is never modified: a new
+calibration of a unit is a new version (1, 2, ... per serial). Every write is one
+transaction, so a failed or interrupted write leaves the store as it was. SQLite writers
+take the database lock up front (``BEGIN IMMEDIATE``) so concurrent processes queue
+instead of failing mid-transaction.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+
+from sqlalchemy import (Boolean, ForeignKey, Integer, String, Text, UniqueConstraint, create_engine, event,
+                        func, select)
+from sqlalchemy.engine import Engine
+from sqlalchemy.exc import IntegrityError, OperationalError, SQLAlchemyError
+from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column, sessionmaker
+
+from workbench.calset import CalibrationSet
+from workbench.errors import StoreError
+
+DEFAULT_URL = "sqlite:///workbench.db"
+
+
+def default_url() -> str:
+    """The store URL: ``WORKBENCH_DB`` if set, else SQLite ``./workbench.db``."""
+    return os.environ.get("WORKBENCH_DB") or DEFAULT_URL
+
+
+class Base(DeclarativeBase):
+    pass
+
+
+class UnitRow(Base):
+    __tablename__ = "units"
+    serial: Mapped[str] = mapped_column(String(128), primary_key=True)
+    model: Mapped[str] = mapped_column(String(128), default="")
+    created: Mapped[str] = mapped_column(String(40))
+
+
+class SetRow(Base):
+    __tablename__ = "calibration_sets"
+    __table_args__ = (UniqueConstraint("serial", "version", name="uq_set_serial_version"),)
+    id: Mapped[str] = mapped_column(String(64), primary_key=True)
+    serial: Mapped[str] = mapped_column(ForeignKey("units.serial"), index=True)
+    version: Mapped[int] = mapped_column(Integer)
+    created: Mapped[str] = mapped_column(String(40))
+    procedures: Mapped[str] = mapped_column(Text)  # comma-separated, for listing
+    sha256: Mapped[str] = mapped_column(String(64))
+    body: Mapped[str] = mapped_column(Text)  # canonical JSON
+
+
+class ApprovalRow(Base):
+    __tablename__ = "approvals"
+    set_id: Mapped[str] = mapped_column(ForeignKey("calibration_sets.id"), primary_key=True)
+    approved_by: Mapped[str] = mapped_column(String(128))
+    approved_at: Mapped[str] = mapped_column(String(40))
+    comment: Mapped[str] = mapped_column(Text, default="")
+
+
+class SessionRow(Base):
+    __tablename__ = "sessions"
+    id: Mapped[str] = mapped_column(String(64), primary_key=True)
+    serial: Mapped[str] = mapped_column(ForeignKey("units.serial"), index=True)
+    procedure: Mapped[str] = mapped_column(String(64))
+    path: Mapped[str] = mapped_column(Text)
+    created: Mapped[str] = mapped_column(String(40))
+    sha256: Mapped[str] = mapped_column(String(64), default="")
+    n_steps: Mapped[int] = mapped_column(Integer, default=0)
+    complete: Mapped[bool] = mapped_column(Boolean, default=True)
+
+
+class ResultRow(Base):
+    __tablename__ = "results"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
+    procedure: Mapped[str] = mapped_column(String(64), index=True)
+    session_id: Mapped[str] = mapped_column(String(64), index=True)
+    serial: Mapped[str] = mapped_column(String(128), index=True)
+    calibration_id: Mapped[str | None] = mapped_column(String(64), nullable=True)
+    created: Mapped[str] = mapped_column(String(40))
+    body: Mapped[str] = mapped_column(Text)
+
+
+@dataclass(frozen=True)
+class SetInfo:
+    """One line of a set listing."""
+
+    id: str
+    serial: str
+    model: str
+    version: int
+    created: str
+    procedures: tuple[str, ...]
+    approved_by: str | None
+
+
+def _now() -> str:
+    return datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
+
+
+def _sqlite_immediate(engine: Engine) -> None:
+    @event.listens_for(engine, "connect")
+    def _connect(dbapi_conn, _record):
+        dbapi_conn.isolation_level = None  # let SQLAlchemy's BEGIN below take effect
+        dbapi_conn.execute("PRAGMA busy_timeout = 30000")
+        dbapi_conn.execute("PRAGMA journal_mode = WAL")
+
+    @event.listens_for(engine, "begin")
+    def _begin(conn):
+        conn.exec_driver_sql("BEGIN IMMEDIATE")
+
+
+class Store:
+    """Calibration sets, units, sessions and results in one database (see module docstring)."""
+
+    def __init__(self, url: str | None = None, create: bool = True):
+        self.url = url or default_url()
+        try:
+            self.engine = create_engine(self.url)
+        except (SQLAlchemyError, ValueError, ImportError) as exc:
+            raise StoreError(f"store {self.url}: cannot open ({str(exc).splitlines()[0][:160]})") from None
+        if self.engine.dialect.name == "sqlite":
+            db = self.engine.url.database
+            if db and db != ":memory:" and not Path(db).parent.resolve().is_dir():
+                raise StoreError(f"store {self.url}: folder {Path(db).parent} does not exist")
+            _sqlite_immediate(self.engine)
+        self._sessions = sessionmaker(self.engine, expire_on_commit=False)
+        if create:
+            self._create_schema()
+
+    def _create_schema(self) -> None:
+        try:
+            Base.metadata.create_all(self.engine)
+        except SQLAlchemyError as exc:
+            raise StoreError(f"store {self.url}: cannot open ({str(exc).splitlines()[0][:160]})") from None
+
+    @contextmanager
+    def transaction(self) -> Iterator[Session]:
+        """One all-or-nothing transaction; errors become StoreError naming the store."""
+        db = self._sessions()
+        try:
+            with db.begin():
+                yield db
+        except IntegrityError:
+            raise
+        except OperationalError as exc:
+            raise StoreError(f"store {self.url}: {str(exc.orig)[:160]}") from None
+        finally:
+            db.close()
+
+    def _ensure_unit(self, db: Session, serial: str, model: str) -> None:
+        row = db.get(UnitRow, serial)
+        if row is None:
+            db.add(UnitRow(serial=serial, model=model, created=_now()))
+        elif model and not row.model:
+            row.model = model
+
+    # -- calibration sets ------------------------------------------------------------
+    def add_set(self, calset: CalibrationSet, retries: int = 20) -> int:
+        """Store a set as the next version of its unit; returns the version number."""
+        body = calset.to_json()
+        for attempt in range(retries):
+            try:
+                with self.transaction() as db:
+                    if db.get(SetRow, calset.id) is not None:
+                        raise StoreError(f"store {self.url}: set {calset.id} is already stored (sets are immutable)")
+                    self._ensure_unit(db, calset.unit.serial, calset.unit.model)
+                    version = (db.scalar(select(func.max(SetRow.version)).where(SetRow.serial == calset.unit.serial))
+                               or 0) + 1
+                    db.add(SetRow(id=calset.id, serial=calset.unit.serial, version=version, created=calset.created,
+                                  procedures=",".join(calset.provenance.procedures), sha256=calset.sha256(),
+                                  body=body))
+                return version
+            except IntegrityError:
+                time.sleep(0.05 * (attempt + 1))  # another writer took this version number
+        raise StoreError(f"store {self.url}: could not allocate a version for {calset.unit.serial}")
+
+    def get_set(self, set_id: str) -> CalibrationSet:
+        """The stored set ``set_id`` (a unique prefix of the id is accepted)."""
+        with self.transaction() as db:
+            row = db.get(SetRow, set_id)
+            if row is None:
+                rows = db.scalars(select(SetRow).where(SetRow.id.like(f"{set_id}%"))).all()
+                if len(rows) != 1:
+                    what = "matches several sets" if rows else "is not in the store"
+                    raise StoreError(f"store {self.url}: set {set_id!r} {what}")
+                row = rows[0]
+            return CalibrationSet.from_json(row.body, source=f"store set {row.id}")
+
+    def latest(self, serial: str) -> CalibrationSet | None:
+        """The newest set of unit ``serial`` (None if it has none)."""
+        with self.transaction() as db:
+            row = db.scalars(select(SetRow).where(SetRow.serial == serial).order_by(SetRow.version.desc())).first()
+            return None if row is None else CalibrationSet.from_json(row.body, source=f"store set {row.id}")
+
+    def list_sets(self, serial: str | None = None) -> list[SetInfo]:
+        """Stored sets (all, or one unit's history), newest first."""
+        with self.transaction() as db:
+            q = (select(SetRow, UnitRow.model, ApprovalRow.approved_by)
+                 .join(UnitRow, UnitRow.serial == SetRow.serial)
+                 .outerjoin(ApprovalRow, ApprovalRow.set_id == SetRow.id))
+            if serial is not None:
+                q = q.where(SetRow.serial == serial)
+            rows = db.execute(q.order_by(SetRow.created.desc(), SetRow.version.desc())).all()
+            return [SetInfo(r.id, r.serial, model, r.version, r.created,
+                            tuple(p for p in r.procedures.split(",") if p), by) for r, model, by in rows]
+
+    def history(self, serial: str) -> list[SetInfo]:
+        """All versions of one unit's calibration, newest first."""
+        return self.list_sets(serial)
+
+    def approve(self, set_id: str, by: str, comment: str = "") -> None:
+        """Record that ``by`` approved set ``set_id`` (the set itself is not modified)."""
+        full_id = self.get_set(set_id).id
+        with self.transaction() as db:
+            if db.get(ApprovalRow, full_id) is not None:
+                raise StoreError(f"store {self.url}: set {full_id} is already approved")
+            db.add(ApprovalRow(set_id=full_id, approved_by=by, approved_at=_now(), comment=comment))
+
+    def units(self) -> list[tuple[str, str]]:
+        """(serial, model) of every unit in the store."""
+        with self.transaction() as db:
+            return [(u.serial, u.model) for u in db.scalars(select(UnitRow).order_by(UnitRow.serial))]
+
+    # -- sessions and results --------------------------------------------------------
+    def add_session(self, session_id: str, serial: str, model: str, procedure: str, path: str,
+                    sha256: str = "", n_steps: int = 0, complete: bool = True) -> None:
+        """Record a session (or update its completeness when it is recorded again on resume)."""
+        with self.transaction() as db:
+            self._ensure_unit(db, serial, model)
+            row = db.get(SessionRow, session_id)
+            if row is None:
+                db.add(SessionRow(id=session_id, serial=serial, procedure=procedure, path=path, created=_now(),
+                                  sha256=sha256, n_steps=n_steps, complete=complete))
+            else:
+                row.sha256, row.n_steps, row.complete = sha256, n_steps, complete
+
+    def list_sessions(self, serial: str | None = None) -> list[SessionRow]:
+        """Recorded sessions, newest first."""
+        with self.transaction() as db:
+            q = select(SessionRow)
+            if serial is not None:
+                q = q.where(SessionRow.serial == serial)
+            return list(db.scalars(q.order_by(SessionRow.created.desc())))
+
+    def add_result(self, procedure: str, session_id: str, serial: str, result: dict,
+                   calset: CalibrationSet | None = None) -> int:
+        """Store an analysis result (and its calibration set, in the same transaction)."""
+        for attempt in range(20):
+            try:
+                with self.transaction() as db:
+                    self._ensure_unit(db, serial, calset.unit.model if calset else "")
+                    if calset is not None:
+                        version = (db.scalar(select(func.max(SetRow.version))
+                                             .where(SetRow.serial == calset.unit.serial)) or 0) + 1
+                        db.add(SetRow(id=calset.id, serial=calset.unit.serial, version=version,
+                                      created=calset.created, procedures=",".join(calset.provenance.procedures),
+                                      sha256=calset.sha256(), body=calset.to_json()))
+                    row = ResultRow(procedure=procedure, session_id=session_id, serial=serial,
+                                    calibration_id=calset.id if calset else None, created=_now(),
+                                    body=json.dumps(result))
+                    db.add(row)
+                    db.flush()
+                    return row.id
+            except IntegrityError:
+                time.sleep(0.05 * (attempt + 1))
+        raise StoreError(f"store {self.url}: could not store the result of {procedure}")
+
+    def list_results(self, procedure: str | None = None, serial: str | None = None) -> list[dict]:
+        """Stored results as dicts (``id``, ``procedure``, ``session_id``, ``serial``, ``created``, ``result``)."""
+        with self.transaction() as db:
+            q = select(ResultRow)
+            if procedure is not None:
+                q = q.where(ResultRow.procedure == procedure)
+            if serial is not None:
+                q = q.where(ResultRow.serial == serial)
+            return [{"id": r.id, "procedure": r.procedure, "session_id": r.session_id, "serial": r.serial,
+                     "calibration_id": r.calibration_id, "created": r.created, "result": json.loads(r.body)}
+                    for r in db.scalars(q.order_by(ResultRow.id.desc()))]
