@@ -95,7 +95,8 @@ def sequence(spec, **opts) -> Sequence:
     return Sequence(NAME, steps, options=dict(o))
 
 
-def _position_sigma(value) -> float | str:
+def position_sigma(value) -> float | str:
+    """The ``position_sigma_deg`` option in rad (or ``"auto"``)."""
     return "auto" if value == "auto" else float(np.radians(float(value)))
 
 
@@ -103,7 +104,7 @@ def analyze(session: Session, **opts) -> ProcedureResult:
     """Accelerometer and gyro static fits of all static steps (see the module docstring)."""
     o = options(opts, _ANALYSIS_KEYS, DEFAULTS, NAME)
     acc = fit_accel(session, None, str(o["nonlinearity"]), settle_s=float(o["settle_s"]),
-                    position_sigma=_position_sigma(o["position_sigma_deg"]))
+                    position_sigma=position_sigma(o["position_sigma_deg"]))
     gyr = fit_gyro_static(session, None, str(o["earth_rate"]), settle_s=float(o["settle_s"]))
     calset = CalibrationSet(unit=session.unit, triads={"accel": acc.to_calibration(), "gyro": gyr.to_calibration()},
                             notes={NAME: {"accel": dict(acc.notes), "gyro": dict(gyr.notes)}})
@@ -163,6 +164,9 @@ def fit_summary(fit: TriadFit, full_scale: float | None = None) -> list[str]:
         if full_scale:
             line += f" ({after / full_scale * 100:.3g} % of full scale {units.fmt(full_scale, 'deg/s', 4)})"
         lines.append(line)
+        if acc:
+            lines.append(f"{t} max | |a| - g | per step: before {units.fmt(np.abs(r['before_norm']).max(), 'mg', 3)}, "
+                         f"after {units.fmt(np.abs(r['after_norm']).max(), 'mg', 3)}")
     for k, v in fit.notes.items():
         if k == "earth_rate":
             lines.append(f"{t} Earth rate: {v}")

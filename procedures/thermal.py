@@ -8,7 +8,9 @@ Two chamber profiles:
   and, with ``rate_dps``, rotations at ±rate about three axes for the gyro scale factor.
 * ``profile="ramp"``: a soak at ``t_min_c``, a continuous ramp at ``ramp_c_per_min`` to
   ``t_max_c`` (and back when ``return_sweep``), the unit static (``mount``) or indexing
-  through the six positions every ``ramp_dwell_s``.
+  through the six positions every ``ramp_dwell_s``. Give ``reference`` (a calibration JSON,
+  e.g. from the turntable procedures) so the ramp fit removes ``M`` and the gyro g-sensitivity
+  ``G f``; without it the ramp "bias" of each position includes them.
 
 Analysis: :func:`workbench.analysis.thermal.analyze_thermal` (per-soak turntable fits, or a
 direct fit of bias against the unit temperature for ramps; cross-validated polynomial order;
@@ -22,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from workbench.analysis.thermal import analyze_thermal, to_calibration
+from workbench.calset import CalibrationSet
 from workbench.errors import RigLimitError
 from workbench.procedure import ProcedureResult
 from workbench.sequence import Hold, Ramp, Rotate, Sequence, Soak, with_options
@@ -36,6 +39,7 @@ DEFAULTS = {
     "dwell_s": 10.0, "rate_dps": None, "ramp_c_per_min": 1.0, "ramp_dwell_s": None, "mount": "z-down",
     "settle_tol_c_per_min": 0.05, "settle_window_s": 120.0,
     "t_ref_c": 25.0, "max_order": 5, "order": None, "hysteresis": "auto", "ramp_window_s": 60.0,
+    "reference": None,
 }
 SIX = ("z-down", "z-up", "x-up", "x-down", "y-up", "y-down")
 RATE_MOUNTS = ("z-down", "x-up", "y-up")
@@ -100,7 +104,11 @@ def _summary(result) -> list[str]:
 def analyze(session, **options) -> ProcedureResult:
     """Thermal analysis of a soak or ramp session -> calibration set with the thermal block."""
     opts = {**DEFAULTS, **options}
-    result = analyze_thermal(session, **{k: opts[k] for k in _ANALYSIS_KEYS})
+    reference = None
+    if opts["reference"]:  # a calibration JSON (e.g. turntable) for the ramp fit's M and G
+        ref = CalibrationSet.load(opts["reference"])
+        reference = {t: ref.model(t) for t in ("gyro", "accel") if t in ref.triads}
+    result = analyze_thermal(session, reference=reference, **{k: opts[k] for k in _ANALYSIS_KEYS})
     return ProcedureResult(NAME, result.to_dict(), to_calibration(result, session.unit), result,
                            _summary(result), list(result.warnings))
 

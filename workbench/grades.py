@@ -60,6 +60,13 @@ _UNITS: dict[str, dict[str, float]] = {
     "fs": {"ppm_fs": 1e-6, "pct_fs": 1e-2},
     "rate/accel": {"deg_per_h_per_g": DEG / HOUR / G0, "deg_per_s_per_g": DEG / G0, "rad_per_s_per_m_per_s2": 1.0},
 }
+_DIM_LABEL = {
+    "rate": "angular-rate", "accel": "acceleration", "field": "magnetic-field",
+    "rate/rthz": "rate noise density", "accel/rthz": "acceleration noise density",
+    "field/rthz": "field noise density", "rate/rts": "rate random walk", "accel/rts": "acceleration random walk",
+    "field/rts": "field random walk", "rate*s": "angle", "accel*s": "velocity", "field*s": "field x time",
+    "ratio": "dimensionless", "fs": "fraction-of-full-scale", "rate/accel": "rate per acceleration",
+}
 # term -> dimension template ('q' = the triad's quantity); noise aliases map to 'white'
 _TERMS = {
     "range": "q", "bias": "q", "bias_instability": "q", "resolution": "q", "bias_hysteresis": "q",
@@ -376,7 +383,7 @@ def _split_key(key: str, triad: str, where: str) -> tuple[str, float]:
         dim = _TERMS[canonical].replace("q", quantity)
         table = _UNITS[dim]
         if unit not in table:
-            raise SpecError(f"{where}: unit {unit!r} is not a {dim} unit for {canonical} "
+            raise SpecError(f"{where}: unit {unit!r} is not a {_DIM_LABEL[dim]} unit for {canonical} "
                             f"(use one of: {', '.join(table)})")
         return canonical, table[unit]
     raise SpecError(f"{where}: unknown key (terms: {', '.join(sorted({*_TERMS, *_ALIASES, *_PLAIN}))})")

@@ -20,7 +20,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from sqlalchemy import (Boolean, ForeignKey, Integer, String, Text, UniqueConstraint, create_engine, event,
-                        func, select)
+                        func, inspect, select)
 from sqlalchemy.engine import Engine
 from sqlalchemy.exc import IntegrityError, OperationalError, SQLAlchemyError
 from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column, sessionmaker
@@ -29,6 +29,8 @@ from workbench.calset import CalibrationSet
 from workbench.errors import StoreError
 
 DEFAULT_URL = "sqlite:///workbench.db"
+HEAD_REVISION = "0001"  # the Alembic revision this version of the code expects
+MIGRATIONS = Path(__file__).resolve().parent / "migrations"
 
 
 def default_url() -> str:
@@ -138,8 +140,14 @@ class Store:
             self._create_schema()
 
     def _create_schema(self) -> None:
+        """Create the schema in an empty database; refuse one at an older revision."""
         try:
-            Base.metadata.create_all(self.engine)
+            current = schema_revision(self.engine)
+            if current is None and not inspect(self.engine).get_table_names():
+                upgrade(self.engine)
+            elif current != HEAD_REVISION:
+                raise StoreError(f"store {self.url}: schema revision {current or 'unknown'}, this version needs "
+                                 f"{HEAD_REVISION}; run `workbench db upgrade --db {self.url}`")
         except SQLAlchemyError as exc:
             raise StoreError(f"store {self.url}: cannot open ({str(exc).splitlines()[0][:160]})") from None
 
@@ -286,3 +294,30 @@ class Store:
             return [{"id": r.id, "procedure": r.procedure, "session_id": r.session_id, "serial": r.serial,
                      "calibration_id": r.calibration_id, "created": r.created, "result": json.loads(r.body)}
                     for r in db.scalars(q.order_by(ResultRow.id.desc()))]
+
+
+def _alembic_config(connection):
+    from alembic.config import Config
+
+    cfg = Config()
+    cfg.set_main_option("script_location", str(MIGRATIONS))
+    cfg.attributes["connection"] = connection
+    return cfg
+
+
+def schema_revision(engine: Engine) -> str | None:
+    """The Alembic revision of the database's schema (None for an empty database)."""
+    from alembic.runtime.migration import MigrationContext
+
+    with engine.connect() as conn:
+        return MigrationContext.configure(conn).get_current_revision()
+
+
+def upgrade(engine_or_url: Engine | str, revision: str = "head") -> str | None:
+    """Migrate the database to ``revision`` (Alembic); returns the revision reached."""
+    from alembic import command
+
+    engine = create_engine(engine_or_url) if isinstance(engine_or_url, str) else engine_or_url
+    with engine.begin() as conn:
+        command.upgrade(_alembic_config(conn), revision)
+    return schema_revision(engine)

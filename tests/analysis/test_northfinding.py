@@ -182,8 +182,8 @@ def test_abba_ordering_cancels_a_linear_drift():
     for ordering in ("ABAB", "ABBA"):
         s = synth_session(maytag_angles(20, ordering=ordering), white=np.zeros(3), drift=drift)
         errs[ordering] = nfm.find_north(s, "maytagging").azimuth_error
-    assert abs(errs["ABBA"]) < 1e-6
     assert abs(errs["ABAB"]) > 1 * MRAD
+    assert abs(errs["ABBA"]) < 0.01 * abs(errs["ABAB"])  # what is left is second order (atan2 curvature)
 
 
 # -- carousel and multi-position ----------------------------------------------------------

@@ -188,9 +188,12 @@ def test_every_page_renders_without_exception(server, browser_page):
     failures = []
     for f in pages:
         name = "" if f == pages[0] else f.stem.split("_", 1)[1]  # the first page is the default, at /
+        t0 = time.monotonic()
         page.goto(f"{url}/{name}")
         _settle(page)
+        t1 = time.monotonic()
         _shot(page, f.stem)
+        print(f"TIMING {f.stem}: settle {t1 - t0:.1f} s, shot {time.monotonic() - t1:.1f} s")
         exc = page.locator("[data-testid='stException']")
         if exc.count():
             failures.append(f"{f.name}: {exc.first.inner_text()[:300]}")

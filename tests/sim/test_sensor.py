@@ -157,3 +157,21 @@ def test_missing_or_misshapen_input_is_an_error():
         imu.measure(omega, force, None, np.full(10, 25.0))
     with pytest.raises(WorkbenchError, match="accel"):
         imu.measure(omega, force[:5], field, np.full(10, 25.0))
+
+
+def test_state_restore_continues_exactly():
+    # A recording interrupted after 1200 samples and resumed from the saved (JSON) state in a
+    # new VirtualIMU equals the uninterrupted recording.
+    import json
+    truth = _hysteresis_unit()
+    n = 2000
+    omega, force, _ = _static_inputs(Rotation.identity(), n)
+    temp = np.linspace(20, 30, n)
+    whole = VirtualIMU(truth, seed=3).measure(omega, force, None, temp)
+    first = VirtualIMU(truth, seed=3)
+    head = first.measure(omega[:1200], force[:1200], None, temp[:1200])
+    resumed = VirtualIMU(truth, seed=99)
+    resumed.restore(json.loads(json.dumps(first.state())))
+    tail = resumed.measure(omega[1200:], force[1200:], None, temp[1200:])
+    for key in ("gyro", "accel", "temp"):
+        assert np.array_equal(whole[key], np.concatenate([head[key], tail[key]]))

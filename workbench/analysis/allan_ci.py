@@ -15,7 +15,8 @@ evaluated on the rescaled problem (same r = M / S, J_MAX terms), which is the co
 behind the paper's large-J tables. The interval of the variance is then
 ``[edf s^2 / chi2(0.975, edf), edf s^2 / chi2(0.025, edf)]``.
 
-Public: :func:`noise_id`, :func:`edf_greenhall`, :func:`confidence`, :class:`DeviationCI`.
+Public: :func:`noise_id`, :func:`identify`, :func:`alpha_from_slope`, :func:`edf_greenhall`, :func:`confidence`,
+:class:`DeviationCI`.
 """
 
 from __future__ import annotations
@@ -91,6 +92,18 @@ def identify(x: np.ndarray, m: np.ndarray, kind: str) -> np.ndarray:
                 last = float(np.clip(np.round(noise_id(x[c], int(mk), _D[kind])), lo, hi))
             out[k, c] = last
     return out
+
+
+def alpha_from_slope(curve: DeviationCurve) -> np.ndarray:
+    """Rounded alpha (K, C) from the local log-log slope mu of an ADEV/HDEV curve, alpha = -2 mu - 1.
+
+    For records whose phase is not at hand (streamed files); valid for -3 < alpha <= 1 (white
+    and flicker phase noise both show mu = -1, and are told apart only by the lag-1 method).
+    """
+    lo, hi = _ALPHA_RANGE[curve.kind]
+    mu = np.gradient(np.log(curve.dev), np.log(curve.tau), axis=0) if len(curve.tau) > 1 else \
+        np.full(curve.dev.shape, -0.5)
+    return np.clip(np.round(-2.0 * mu - 1.0), lo, min(hi, 1))
 
 
 # -- Greenhall EDF -------------------------------------------------------------------------

@@ -94,10 +94,9 @@ def _irls(a: np.ndarray, avar: np.ndarray, edf: np.ndarray, cols: list[int]) -> 
         new = np.zeros(5)
         new[cols] = coef
         model = a @ new
-        if np.allclose(new, theta, rtol=1e-8, atol=0.0):
-            break
+        done = float(np.max(np.abs(new - theta))) <= 1e-8 * float(np.max(new))
         theta = new
-        if not np.any(model > 0):
+        if done or not model.max() > 0:
             break
     return theta, edf / (2.0 * np.maximum(model, 1e-300) ** 2)
 

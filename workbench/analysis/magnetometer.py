@@ -151,17 +151,6 @@ def _check_units(radius: float, magnitude: float, source: str) -> None:
                                 f"({size * f:.4g} µT after conversion); convert to µT")
 
 
-def check_fit_norm(fit: MagFit, source: str) -> None:
-    """After a 3D fit: a field norm that is a unit slip (gauss, mG, nT) is an error."""
-    lo, hi = FIELD_RANGE_UT
-    if fit.method.startswith("2d") or lo <= fit.field_norm_ut <= hi:
-        return
-    for unit, f in _UNIT_FACTORS.items():
-        if lo <= fit.field_norm_ut * f <= hi:
-            raise AnalysisError(f"{source}: fitted field norm {fit.field_norm_ut:.4g} µT looks like {unit} "
-                                f"({fit.field_norm_ut * f:.4g} µT after conversion); convert the data to µT")
-
-
 def _down(points: MagPoints) -> np.ndarray | None:
     if points.accel is not None:
         return mag_attitude.down_direction(points.accel)
@@ -233,7 +222,6 @@ def calibrate(points: MagPoints, method: str = "auto", robust: bool = False, fie
         choice = mag_select.Choice(method, "chosen by the user")
     check_points(points.mag, choice.method, source)
     fit = _fit(choice.method, points, down, field_norm_ut, robust)
-    check_fit_norm(fit, source)
     quality = mag_quality.assess(fit, points.mag, down, field_norm_ut)
     head = raw_head = base = base_head = None
     if points.attitude is not None:

@@ -109,12 +109,41 @@ def _concat(parts: list[Observations]) -> Observations:
                           ("t", "rate", "cos_angle", "sin_angle", "table_rate", "duration", "step", "n")))
 
 
-def _step_angles(session: Session, step, df) -> np.ndarray:
-    """Table angle (rad) of each sample of ``step``: the encoder column, else the commanded motion."""
-    if "table_angle" in df.columns:
-        return df["table_angle"].to_numpy(float)
-    t = df["t"].to_numpy(float)
-    return step.table_angle + step.table_rate * (t - step.t_start)
+class _Samples:
+    """The session's samples as numpy columns, cut per step (pandas filtering per step is slow)."""
+
+    def __init__(self, session: Session) -> None:
+        df = session.samples
+        self.session = session
+        self.t = df["t"].to_numpy(float)
+        self.gyro = df[["gx", "gy", "gz"]].to_numpy(float)
+        self.accel = df[["ax", "ay", "az"]].to_numpy(float)
+        self.angle = df["table_angle"].to_numpy(float) if "table_angle" in df.columns else None
+        self.rate = df["table_rate"].to_numpy(float) if "table_rate" in df.columns else None
+        label = df["step"].to_numpy()
+        order = np.argsort(label, kind="stable")
+        keys, first = np.unique(label[order], return_index=True)
+        self._rows = dict(zip(keys.tolist(), np.split(order, first[1:])))
+
+    def cut(self, st, settle_s: float, static: bool) -> dict:
+        """Samples of step ``st`` after ``settle_s`` s (static: only samples with no table rate).
+
+        Returns ``t`` s, ``gyro`` (n, 3) rad/s, ``accel`` (n, 3), ``angle`` rad (the encoder
+        column, else the commanded motion), ``rate`` rad/s, and ``span`` s (step end minus
+        the first usable sample, before settling is removed).
+        """
+        rows = self._rows.get(st.index, np.zeros(0, int))
+        if static and self.rate is not None:
+            rows = rows[np.abs(self.rate[rows]) < STATIC_RATE_TOL]
+        t = self.t[rows]
+        span = 0.0 if len(t) == 0 else st.t_end - max(st.t_start, t[0])
+        if len(t):
+            rows = rows[t >= max(st.t_start, t[0]) + settle_s]
+            t = self.t[rows]
+        angle = self.angle[rows] if self.angle is not None else st.table_angle + st.table_rate * (t - st.t_start)
+        rate = self.rate[rows] if self.rate is not None else np.full(len(t), st.table_rate)
+        return {"t": t, "gyro": self.gyro[rows], "accel": self.accel[rows], "angle": angle, "rate": rate,
+                "span": span}
 
 
 def static_observations(session: Session, settle_s: float, steps: Sequence[int] | None = None) -> Observations:
@@ -128,26 +157,19 @@ def static_observations(session: Session, settle_s: float, steps: Sequence[int] 
     chosen = session.steps_of_kind("static") if steps is None else [session.step(i) for i in steps]
     if not chosen:
         raise AnalysisError(f"{session.name}: no static steps to find north from")
+    data = _Samples(session)
     rows = []
     for st in chosen:
-        df = session.step_samples(st.index)
-        if "table_rate" in df.columns:
-            df = df[np.abs(df["table_rate"].to_numpy(float)) < STATIC_RATE_TOL]
-        t = df["t"].to_numpy(float)
-        where = f"{session.name}: step {st.index} ({st.kind}{', ' + st.label if st.label else ''})"
-        if len(t) == 0 or st.t_end - max(st.t_start, t[0]) <= settle_s:
-            dwell = 0.0 if len(t) == 0 else st.t_end - max(st.t_start, t[0])
-            raise AnalysisError(f"{where}: static dwell {dwell:.3g} s is not longer than the settling time "
+        c = data.cut(st, settle_s, static=True)
+        if c["span"] <= settle_s or len(c["t"]) == 0:
+            where = f"{session.name}: step {st.index} ({st.kind}{', ' + st.label if st.label else ''})"
+            raise AnalysisError(f"{where}: static dwell {c['span']:.3g} s is not longer than the settling time "
                                 f"{settle_s:g} s")
-        keep = t >= max(st.t_start, t[0]) + settle_s
-        df = df[keep]
-        ang = _step_angles(session, st, df)
-        gyro = df[["gx", "gy", "gz"]].to_numpy(float)
-        tt = df["t"].to_numpy(float)
-        rows.append(Observations(np.array([tt.mean()]), gyro.mean(axis=0)[None, :], np.array([np.cos(ang).mean()]),
-                                 np.array([np.sin(ang).mean()]), np.zeros(1),
-                                 np.array([len(tt) / session.sample_rate_hz]), np.array([st.index]),
-                                 np.array([len(tt)])))
+        n = len(c["t"])
+        rows.append(Observations(np.array([c["t"].mean()]), c["gyro"].mean(axis=0)[None, :],
+                                 np.array([np.cos(c["angle"]).mean()]), np.array([np.sin(c["angle"]).mean()]),
+                                 np.zeros(1), np.array([n / session.sample_rate_hz]), np.array([st.index]),
+                                 np.array([n])))
     return _concat(rows)
 
 
@@ -162,30 +184,27 @@ def rotating_observations(session: Session, settle_s: float, bin_deg: float = 5.
     chosen = session.steps_of_kind(*kinds)
     if not chosen:
         raise AnalysisError(f"{session.name}: no {'/'.join(kinds)} steps to find north from")
+    data = _Samples(session)
     parts = []
     for st in chosen:
-        df = session.step_samples(st.index)
-        t = df["t"].to_numpy(float)
+        c = data.cut(st, settle_s, static=False)
         where = f"{session.name}: step {st.index} ({st.kind})"
-        if len(t) == 0 or st.t_end - t[0] <= settle_s:
-            raise AnalysisError(f"{where}: duration is not longer than the settling time {settle_s:g} s")
-        df = df[t >= t[0] + settle_s]
-        t = df["t"].to_numpy(float)
-        ang = _step_angles(session, st, df)
-        rate = df["table_rate"].to_numpy(float) if "table_rate" in df.columns else np.full(len(t), st.table_rate)
+        if c["span"] <= settle_s:
+            raise AnalysisError(f"{where}: duration {c['span']:.3g} s is not longer than the settling time "
+                                f"{settle_s:g} s")
         per_bin = max(1, int(round(np.radians(bin_deg) / max(abs(st.table_rate), 1e-12) * session.sample_rate_hz)))
-        nb = len(t) // per_bin
+        nb = len(c["t"]) // per_bin
         if nb < 8:
             raise AnalysisError(f"{where}: {nb} bins of {bin_deg:g}°; a carousel needs at least 8")
-        sl = slice(0, nb * per_bin)
 
         def bmean(v):
-            v = np.asarray(v)[sl]
+            v = np.asarray(v)[:nb * per_bin]
             return v.reshape(nb, per_bin, *v.shape[1:]).mean(axis=1)
 
-        parts.append(Observations(bmean(t), bmean(df[["gx", "gy", "gz"]].to_numpy(float)), bmean(np.cos(ang)),
-                                  bmean(np.sin(ang)), bmean(rate), np.full(nb, per_bin / session.sample_rate_hz),
-                                  np.full(nb, st.index), np.full(nb, per_bin)))
+        parts.append(Observations(bmean(c["t"]), bmean(c["gyro"]), bmean(np.cos(c["angle"])),
+                                  bmean(np.sin(c["angle"])), bmean(c["rate"]),
+                                  np.full(nb, per_bin / session.sample_rate_hz), np.full(nb, st.index),
+                                  np.full(nb, per_bin)))
     return _concat(parts)
 
 
@@ -673,7 +692,9 @@ def _session_mount(session: Session, obs: Observations, max_tilt: float, axes: S
 
 def _accel_tilt_warning(session: Session, steps: np.ndarray, geom: AxisGeometry, max_tilt: float) -> list[str]:
     """Warn when the accelerometers show a level gyro axis tilted beyond ``max_tilt`` (rad)."""
-    f = np.mean([session.accel(int(i)).mean(axis=0) for i in np.unique(steps)], axis=0)
+    data = _Samples(session)
+    f = np.mean([data.cut(session.step(int(i)), 0.0, static=True)["accel"].mean(axis=0) for i in np.unique(steps)],
+                axis=0)
     tilt = np.arcsin(np.clip(np.abs(f) / np.linalg.norm(f), 0.0, 1.0))
     bad = [i for i in np.flatnonzero(geom.horizontal) if tilt[i] > max_tilt]
     return [f"{session.name}: accelerometers show body {'xyz'[i]} tilted {np.degrees(tilt[i]):.2f}° from level "
@@ -689,18 +710,13 @@ def earth_rate_free_series(session: Session, obs: Observations, fit: HarmonicFit
     (the index moves between steps are skipped, so the record is treated as contiguous).
     """
     lat = session.site.latitude
+    data = _Samples(session)
     parts = []
     for idx in np.unique(obs.step):
         st = session.step(int(idx))
-        df = session.step_samples(st.index)
-        if st.kind == "static" and "table_rate" in df.columns:
-            df = df[np.abs(df["table_rate"].to_numpy(float)) < STATIC_RATE_TOL]
-        t = df["t"].to_numpy(float)
-        df = df[t >= max(st.t_start, t[0]) + settle_s]
-        ang = _step_angles(session, st, df)
-        rate = df["table_rate"].to_numpy(float) if "table_rate" in df.columns else np.full(len(df), st.table_rate)
-        model = fit.model(ang, geom, lat) - fit.bias + geom.down * rate[:, None]
-        parts.append(df[["gx", "gy", "gz"]].to_numpy(float) - model)
+        c = data.cut(st, settle_s, static=st.kind == "static")
+        model = fit.model(c["angle"], geom, lat) - fit.bias + geom.down * c["rate"][:, None]
+        parts.append(c["gyro"] - model)
     return np.concatenate(parts)
 
 

@@ -94,6 +94,37 @@ def _stats(step: StepRecord, df: pd.DataFrame, revolutions: int) -> StepStats:
                      revolutions)
 
 
+def static_mean_variance(session: Session, stats: list[StepStats], triad: str, settle_s: float = 0.0) -> np.ndarray:
+    """Variance (n, 3) of each static step's mean, from a two-term noise model pooled over the steps.
+
+    The Allan variance of each step is taken at ``tau1 = T/20`` and ``tau2 = T/4`` (non-overlapping
+    blocks) and averaged over the steps; ``AVAR(tau) = W / tau + F`` (white noise plus a flat
+    bias-instability floor, IEEE 952) is solved for ``W, F >= 0``. The variance of a mean over
+    ``T_i`` is then ``W / T_i + F``: the white part averages down, the bias wander does not.
+    """
+    cols = GYRO if triad == "gyro" else ACCEL
+    fs = session.sample_rate_hz
+    avar = {20: [], 4: []}
+    n_min = min(s.n for s in stats)
+    for s in stats:
+        x = _frame(session, s.step, settle_s)[cols].to_numpy(float)
+        for k in avar:
+            m = n_min // k
+            if m < 1:
+                continue
+            blocks = x[: (len(x) // m) * m].reshape(-1, m, 3).mean(axis=1)
+            avar[k].append(0.5 * np.mean(np.diff(blocks, axis=0) ** 2, axis=0))
+    taus = np.array([n_min // 20, n_min // 4]) / fs
+    if taus[0] <= 0 or not avar[20] or not avar[4]:
+        return np.array([s.accel_var if triad == "accel" else s.gyro_var for s in stats])
+    a1, a2 = np.mean(avar[20], axis=0), np.mean(avar[4], axis=0)
+    w = np.maximum((a1 - a2) / (1 / taus[0] - 1 / taus[1]), 0.0)
+    f = np.maximum(a2 - w / taus[1], 0.0)
+    w = np.where(f == 0, a1 * taus[0], w)  # white only: take the better-estimated short tau
+    t = np.array([s.n / fs for s in stats])
+    return w[None, :] / t[:, None] + f[None, :]
+
+
 def motion_in_static(session: Session, step: StepRecord, settle_s: float = 0.0) -> str | None:
     """A one-line reason if the static ``step`` shows motion, else None.
 

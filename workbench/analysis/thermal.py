@@ -559,8 +559,10 @@ def ramp_series(session, triad: str, window_s: float = 60.0, reference=None,
                 lag_tolerance: float = 0.2) -> tuple[RampSeries, list[str]]:
     """Bias of ``triad`` against the unit temperature over the session's ``ramp`` steps.
 
-    ``reference`` is a TriadModel whose ``I + M`` maps the known input (Earth rate in the body
-    frame for the gyro, specific force for the accelerometer) to the output; None = identity.
+    ``reference`` is a TriadModel (e.g. from a turntable calibration) whose ``I + M`` maps the
+    known input (Earth rate in the body frame for the gyro, specific force for the
+    accelerometer) to the output and whose gyro ``G`` removes the g-sensitivity ``G f``;
+    None = identity and no ``G`` (the gyro "bias" then includes ``G f`` of the position).
     For an accelerometer held in one position the bias of an axis along gravity absorbs the
     scale-factor change times g (a warning says so). A ramp whose unit temperature rate falls
     short of the commanded rate by more than ``lag_tolerance`` (fraction), i.e. too fast for
@@ -574,6 +576,7 @@ def ramp_series(session, triad: str, window_s: float = 60.0, reference=None,
     _require_temp(session, [s.index for s in ramps])
     warnings = _ramp_lag_warnings(session, ramps, lag_tolerance)
     gain = np.eye(3) if reference is None else np.eye(3) + np.asarray(reference.scale_misalignment, float)
+    gsens = None if reference is None else reference.g_sensitivity
     rows = []
     g = session.site.gravity
     for st in ramps:
@@ -586,13 +589,15 @@ def ramp_series(session, triad: str, window_s: float = 60.0, reference=None,
             sel = idx == w
             if sel.sum() < 3 or np.ptp(angle[sel]) > 1e-6 or t[sel][-1] - t[sel][0] < 0.5 * window_s:
                 continue
+            force = session.table_attitude(st, float(angle[sel][0])).inv().apply([0.0, 0.0, -g])
             if triad == "gyro":
                 true = session.attitude(st, float(angle[sel][0])).inv().apply(earth_rate_ned(session.site.latitude))
+                known = gain @ true + (0.0 if gsens is None else gsens @ force)
             else:
-                true = session.table_attitude(st, float(angle[sel][0])).inv().apply([0.0, 0.0, -g])
+                known = gain @ force
             slope = np.polyfit(t[sel] - t[sel][0], temp[sel], 1)[0] * 60.0
             n = sel.sum()
-            rows.append((temp[sel].mean(), slope, *(y[sel].mean(0) - gain @ true),
+            rows.append((temp[sel].mean(), slope, *(y[sel].mean(0) - known),
                          *(y[sel].std(0, ddof=1) / np.sqrt(n)), st.index))
     if not rows:
         raise AnalysisError(f"{session.name}: ramp steps give no static window of {window_s} s")

@@ -40,7 +40,8 @@ from scipy.optimize import brentq
 from scipy.stats import chi2 as chi2_dist
 
 from workbench.analysis.position_check import (
-    StepStats, deleted_residual_statistics, motion_in_static, step_name, step_stats, whole_revolutions,
+    StepStats, deleted_residual_statistics, motion_in_static, static_mean_variance, step_name, step_stats,
+    whole_revolutions,
 )
 from workbench.calset import TriadCalibration
 from workbench.earth import EARTH_RATE, earth_rate_ned
@@ -338,7 +339,7 @@ def fit_accel(session: Session, steps: Sequence[int] | None = None, nonlinearity
     stats, warnings = _static_stats(session, steps, settle_s, "accelerometer fit")
     f = _specific_force(session, stats)
     y = np.array([s.accel for s in stats])
-    var = np.array([s.accel_var for s in stats])
+    var = static_mean_variance(session, stats, "accel", settle_s)
     g = session.site.gravity
     levels = [np.unique(np.round(np.abs(f[:, j]) / g, 2)) for j in range(3)]
     nl_axes = [nonlinearity != "none" and int(np.sum(lv > 0.1)) >= 2 for lv in levels]
@@ -450,7 +451,7 @@ def fit_gyro_static(session: Session, steps: Sequence[int] | None = None, earth_
     ref = (np.array([session.attitude(s.step, _angle(s)).inv().apply(w_ie) for s in stats]) @ gain.T if use_earth
            else np.zeros((len(stats), 3)))
     y = np.array([s.gyro for s in stats])
-    var = np.array([s.gyro_var for s in stats])
+    var = static_mean_variance(session, stats, "gyro", settle_s)
 
     def build(rows: np.ndarray) -> _AxisFit:
         fr = f[rows]
@@ -511,7 +512,8 @@ def rate_reference(session: Session, s: StepStats) -> np.ndarray:
     return np.asarray(s.step.mount).T @ np.array([0.0, 0.0, down])
 
 
-def fit_gyro_rate(session: Session, steps: Sequence[int] | None = None) -> TriadFit:
+def fit_gyro_rate(session: Session, steps: Sequence[int] | None = None,
+                  position_sigma: float | str = 0.0) -> TriadFit:
     """Gyro ``M``, nonlinearity and asymmetry from rate steps (rad/s, body frame).
 
     Each rate step is reduced to its mean over whole revolutions and compared with
@@ -519,6 +521,10 @@ def fit_gyro_rate(session: Session, steps: Sequence[int] | None = None) -> Triad
     c_j(mount)``, with one offset per mount (bias + G f). Nonlinearity and asymmetry need the
     pair sums ``c + asym r + n r^2`` at three or more rates; with fewer they are dropped and a
     warning says so. Bias and ``G`` are solved from the offsets when the mounts observe them.
+
+    ``position_sigma`` (rad): 1-sigma tilt of the table axis in the body at each step (fixture
+    repeatability); it adds ``|w|^2 s^2 (1 - u_j^2)`` to the variance of row ``j`` (the
+    off-axis rate it leaks), ``"auto"`` estimates it as :func:`fit_accel` does.
     """
     check_site(session)
     context = f"{session.name}: gyro rate fit"
@@ -539,15 +545,22 @@ def fit_gyro_rate(session: Session, steps: Sequence[int] | None = None) -> Triad
     mounts = list(dict.fromkeys(_mount_key(s.step.mount) for s in stats))
     onehot = np.array([[float(_mount_key(s.step.mount) == m) for m in mounts] for s in stats])
 
-    def build(rows: np.ndarray) -> _AxisFit:
+    speed2 = np.sum(w**2, axis=1)[:, None]
+    u2 = w**2 / speed2
+
+    def position_var(sig: float) -> np.ndarray:
+        return var + speed2 * sig**2 * (1 - u2) + speed2 * sig**4 * u2
+
+    def build(rows: np.ndarray, sig: float | None = None) -> _AxisFit:
         wr, oh = w[rows], onehot[rows]
+        vr = position_var(tilt if sig is None else sig)[rows]
         base = [[f"m{k}" for k in range(3)] + ["asym", "n"] + [f"c{m}" for m in range(len(mounts))]
                 for _ in range(3)]
         # observability from the commanded rates (the Earth rate and encoder noise would make a
         # structurally unobservable column look observable at a condition number of ~1e4)
         wn = w_nominal[rows]
         designs = [np.column_stack([wn, np.abs(wn[:, j]), wn[:, j] ** 2, oh]) for j in range(3)]
-        keep, dropped = _drop_unobservable(designs, base, var[rows], droppable=("n", "asym"), context=context)
+        keep, dropped = _drop_unobservable(designs, base, vr, droppable=("n", "asym"), context=context)
         names = [[base[j][k] for k in keep[j]] for j in range(3)]
 
         def model(j, beta):
@@ -562,14 +575,15 @@ def fit_gyro_rate(session: Session, steps: Sequence[int] | None = None) -> Triad
                 [p.get(f"c{m}", 0.0) for m in range(len(mounts))])
             return h, np.column_stack([cols[nm] for nm in names[j]])
 
-        fit = _gauss_newton(model, [np.zeros(len(n)) for n in names], names, y[rows], var[rows])
+        fit = _gauss_newton(model, [np.zeros(len(n)) for n in names], names, y[rows], vr)
         fit.dropped = dropped
         return fit
 
     def residual_of(fit, rows):
         return lambda i: f"{np.degrees(abs(y[i] - w[i]).max()):.3g} °/s before compensation"
 
-    fit, used, outliers, w2 = _fit_with_misfits(build, stats, y, var, context, residual_of)
+    tilt = _position_sigma(build, position_sigma, len(stats), context)
+    fit, used, outliers, w2 = _fit_with_misfits(build, stats, y, position_var(tilt), context, residual_of)
     warnings += w2
     unobserved = sorted({d for d in fit.dropped if not d.startswith("c")})
     if unobserved:
@@ -589,7 +603,8 @@ def fit_gyro_rate(session: Session, steps: Sequence[int] | None = None) -> Triad
              "revolutions": [s.revolutions for s in stats]}
     if np.isnan(bias_s).all():
         notes["bias"] = "not observed: the rate steps' mounts cannot separate bias from g-sensitivity"
-    return _replace_fit(result, residuals=_residual_frame(stats, w, y, comp, var * fit.scale, used),
+    notes["position_sigma_rad"] = tilt
+    return _replace_fit(result, residuals=_residual_frame(stats, w, y, comp, position_var(tilt) * fit.scale, used),
                         outliers=tuple(stats[i].step.index for i in outliers), warnings=tuple(warnings),
                         chi2_reduced=fit.chi2 / fit.dof if fit.dof else float("nan"), dof=fit.dof, notes=notes)
 

@@ -3,16 +3,19 @@
 Attitude propagation over a block of gyro samples (vectorised with scipy Rotation), coarse
 levelling from the accelerometers, Euler angles and attitude-error metrics.
 
-Attitude is the body-to-NED rotation ``C_b^n`` as a :class:`scipy.spatial.transform.Rotation`.
+Attitude is the body-to-NED rotation ``C_b^n``: a :class:`scipy.spatial.transform.Rotation` at the
+interfaces, a (3, 3) direction-cosine matrix inside the filter loops (scipy builds every
+rotation; numpy only multiplies the matrices, which is much faster than per-sample objects).
 Its kinematics with the Earth rate removed (thesis eq. 3.6, ``q_dot = q * (w_ib - C_n^b w_ie) / 2``)
 has the exact solution ``C(t) = Exp(-w_ie t) C(0) prod_k Exp(w_k dt)``: the Earth term is a
 rotation of the navigation frame, the gyro term a product of body increments, so a block is
 propagated with one prefix product (log2 n vectorised compositions) instead of a Python loop.
 
-Public: :func:`propagate_block`, :func:`coarse_level`, :func:`euler_rph`, :func:`attitude_errors`,
-:func:`rotation_error_ned`.
+Public: :class:`BlockPropagator`, :func:`coarse_level`, :func:`from_rph`, :func:`euler_rph`,
+:func:`attitude_errors`, :func:`rotation_error_ned`, :func:`gain_weight`, :func:`sequential_update`.
 
-References: thesis (shared/seeds/000_...) eq. 3.6, 3.38-3.45, 3.54-3.56.
+References: thesis (shared/seeds/000_...) eq. 3.6, 3.38-3.45, 3.54-3.56, 3.58-3.60;
+paper 001 (shared/seeds/001_...) eq. 46-47.
 """
 
 from __future__ import annotations
@@ -21,27 +24,35 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 
-def _prefix_product(r: Rotation) -> Rotation:
-    """Cumulative products ``r[0], r[0]*r[1], ..., r[0]*...*r[n-1]`` (Hillis-Steele scan)."""
-    n = len(r)
+def _prefix_product(m: np.ndarray) -> np.ndarray:
+    """Cumulative products ``m[0], m[0] @ m[1], ..., m[0] @ ... @ m[n-1]`` of (n, 3, 3) matrices (Hillis-Steele scan)."""
+    m = np.array(m)
     s = 1
-    while s < n:
-        r = Rotation.concatenate([r[:s], r[:-s] * r[s:]])
+    while s < len(m):
+        m[s:] = m[:-s] @ m[s:]
         s *= 2
-    return r
+    return m
 
 
-def propagate_block(c0: Rotation, omega_b: np.ndarray, dt: float, earth_rate_ned: np.ndarray) -> Rotation:
-    """Body-to-NED attitudes after each of the ``n`` gyro samples of a block.
+class BlockPropagator:
+    """Propagates body-to-NED direction-cosine matrices over blocks of ``n`` gyro samples.
 
-    ``c0`` attitude at the block start; ``omega_b`` (n, 3) rad/s body rates w.r.t. inertial
-    space, already bias-corrected; ``earth_rate_ned`` (3,) rad/s. Returns ``n`` rotations, the
-    last one the attitude at the block end. Each sample is a constant rate over ``dt``.
+    ``dt`` sample interval, s; ``earth_rate_ned`` (3,) rad/s. The Earth-rate factor
+    ``Exp(-w_ie t_k)`` of each sample in a block is computed once here.
     """
-    n = len(omega_b)
-    inc = _prefix_product(Rotation.from_rotvec(np.asarray(omega_b) * dt))
-    earth = Rotation.from_rotvec(-np.outer(np.arange(1, n + 1) * dt, earth_rate_ned))
-    return earth * (c0 * inc)
+
+    def __init__(self, n: int, dt: float, earth_rate_ned: np.ndarray):
+        self.n, self.dt = n, dt
+        self.earth = Rotation.from_rotvec(-np.outer(np.arange(1, n + 1) * dt, earth_rate_ned)).as_matrix()
+
+    def propagate(self, c0: np.ndarray, omega_b: np.ndarray) -> np.ndarray:
+        """DCMs (n, 3, 3) after each sample, from ``c0`` (3, 3) at the block start.
+
+        ``omega_b`` (n, 3) rad/s: bias-corrected body rates w.r.t. inertial space, each constant
+        over its sample interval; the last matrix is the attitude at the block end.
+        """
+        inc = _prefix_product(Rotation.from_rotvec(np.asarray(omega_b) * self.dt).as_matrix())
+        return self.earth[: len(omega_b)] @ (c0 @ inc)
 
 
 def coarse_level(accel: np.ndarray) -> tuple[float, float]:
@@ -89,3 +100,46 @@ def attitude_errors(estimate: Rotation, truth: Rotation) -> np.ndarray:
 def rotation_error_ned(estimate: Rotation, truth: Rotation) -> np.ndarray:
     """Small-angle attitude error (…, 3) rad, NED: ``Exp(e) = truth * estimate^-1`` (defined at any attitude)."""
     return (truth * estimate.inv()).as_rotvec()
+
+
+def gain_weight(mu: float, c0: float, c1: float) -> float:
+    """Gain scale factor of a normalised innovation ``mu`` (paper 001 eq. 47, bifactor reduction).
+
+    1 for ``|mu| <= c0``; ``c0 (c1 - |mu|) / (|mu| (c1 - c0))`` for ``c0 < |mu| <= c1`` (the
+    printed eq. 47 garbles this numerator; this form is continuous: 1 at c0, 0 at c1); 0 beyond.
+    """
+    a = abs(mu)
+    if a <= c0:
+        return 1.0
+    if a > c1:
+        return 0.0
+    return c0 * (c1 - a) / (a * (c1 - c0))
+
+
+def sequential_update(P: np.ndarray, H: np.ndarray, z: np.ndarray, r: np.ndarray,
+                      scaling: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Kalman measurement update, one scalar measurement at a time (diagonal R).
+
+    ``P`` (n, n) prior covariance; ``H`` (m, n); ``z`` (m,) innovations of the error state
+    (measurement minus prediction at zero error); ``r`` (m,) variances. With ``scaling =
+    (c0, c1)`` each gain is scaled by :func:`gain_weight` of its normalised innovation
+    (paper 001 eq. 46). The covariance uses the Joseph form, valid for any (scaled) gain.
+    Returns the posterior covariance, the error-state estimate (n,) and the weights (m,).
+    """
+    n = P.shape[0]
+    dx = np.zeros(n)
+    weights = np.ones(len(z))
+    eye = np.eye(n)
+    for i in range(len(z)):
+        h = H[i]
+        ph = P @ h
+        s = float(h @ ph) + r[i]
+        innov = z[i] - h @ dx
+        gain = ph / s
+        if scaling is not None:
+            weights[i] = gain_weight(innov / np.sqrt(s), *scaling)
+            gain = gain * weights[i]
+        dx = dx + gain * innov
+        ikh = eye - np.outer(gain, h)
+        P = ikh @ P @ ikh.T + r[i] * np.outer(gain, gain)
+    return 0.5 * (P + P.T), dx, weights

@@ -28,7 +28,7 @@ Two refinements over the thesis, both for honest uncertainties:
 - the external heading's own uncertainty cannot be reduced by the filter and is added to the
   reported heading sigma.
 
-Public: :class:`ZuptConfig`, :class:`ZuptResult`, :func:`align`, :func:`gain_weight`.
+Public: :class:`ZuptConfig`, :class:`ZuptResult`, :func:`align`.
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ from scipy.spatial.transform import Rotation
 from workbench.earth import earth_rate_ned, gravity_ned
 from workbench.errors import AnalysisError
 from workbench.nav.compensate import ImuSamples, ProcessNoise
-from workbench.nav.strapdown import coarse_level, euler_rph, from_rph, propagate_block
+from workbench.nav.strapdown import coarse_level, euler_rph, from_rph, BlockPropagator, sequential_update
 
 N_STATES = 15
 P, V, A, BA, BG = (slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), slice(12, 15))
@@ -51,20 +51,6 @@ MEASUREMENTS = ("position", "velocity", "attitude", "heading", "zarupt")
 
 def _skew(v: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-
-
-def gain_weight(mu: float, c0: float, c1: float) -> float:
-    """Gain scale factor of a normalised innovation ``mu`` (paper 001 eq. 47, bifactor reduction).
-
-    1 for ``|mu| <= c0``; ``c0 (c1 - |mu|) / (|mu| (c1 - c0))`` for ``c0 < |mu| <= c1`` (the
-    printed eq. 47 garbles this numerator; this form is continuous: 1 at c0, 0 at c1); 0 beyond.
-    """
-    a = abs(mu)
-    if a <= c0:
-        return 1.0
-    if a > c1:
-        return 0.0
-    return c0 * (c1 - a) / (a * (c1 - c0))
 
 
 @dataclass(frozen=True)
@@ -105,8 +91,9 @@ class ZuptConfig:
 class ZuptResult:
     """ZUPT alignment history at the corrector epochs (E epochs) and final estimates, SI.
 
-    ``t`` (E,) s from the first sample; ``rph`` (E, 3) roll, pitch, heading rad after each
-    correction, ``rph_sigma`` (E, 3) their 1-sigma (heading includes the external heading's);
+    ``t`` (E,) s; ``rph`` (E, 3) roll, pitch, heading rad after each correction;
+    ``attitude_sigma`` (E, 3) 1-sigma of the attitude error about north, east, down, rad (down,
+    the heading, includes the external heading's own sigma);
     ``position`` (E, 3) m NED offset from the frozen position; ``velocity`` (E, 3) m/s NED;
     ``accel_bias`` / ``gyro_bias`` (E, 3) body-frame estimates with ``*_sigma`` 1-sigma;
     ``drift_velocity`` (E,) m/s and ``drift_attitude`` (E,) rad: how far the free mechanisation
@@ -117,7 +104,7 @@ class ZuptResult:
 
     t: np.ndarray
     rph: np.ndarray
-    rph_sigma: np.ndarray
+    attitude_sigma: np.ndarray
     position: np.ndarray
     velocity: np.ndarray
     accel_bias: np.ndarray
@@ -132,7 +119,7 @@ class ZuptResult:
     t_start: float
     measurements: tuple[str, ...]
 
-    def convergence_time(self, velocity_tol: float = 0.01, attitude_tol: float = np.radians(0.01)) -> float | None:
+    def convergence_time(self, velocity_tol: float = 0.01, attitude_tol: float = np.radians(0.05)) -> float | None:
         """Time (s from the EKF start) after which the free mechanisation stays at rest.
 
         The thesis' criterion ("until the INS indicates itself to be at rest and non-rotating"):
@@ -219,7 +206,8 @@ def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: fl
     # tilt / horizontal accel-bias direction. The unit is static, so they are constant.
     F, Q = _continuous_model(ci, np.array([0.0, 0.0, -g_meas]), w_ie, noise)
     phi, qd = _discretise(F, Q, n_blk * dt)
-    c = c_init
+    prop = BlockPropagator(n_blk, dt, w_ie)
+    c = ci
     pos, vel = np.zeros(3), np.zeros(3)
     ba, bg = np.zeros(3), np.zeros(3)
     ts = np.arange(1, n_blk + 1) * dt
@@ -227,20 +215,19 @@ def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: fl
     e_cor_inv = e_cor.inv()
     n_avg = max(1, int(round(config.zarupt_window_s / dt)))
     use = config.measurements
-    hist = {k: [] for k in ("t", "rph", "rph_sig", "pos", "vel", "ba", "bas", "bg", "bgs", "dv", "da", "w")}
-    eye = np.eye(N_STATES)
+    hist = {k: [] for k in ("t", "c", "rph_sig", "pos", "vel", "ba", "bas", "bg", "bgs", "dv", "da", "w")}
     for k in range(n_epochs):
         i0 = n_level + k * n_blk
         blk = samples.slice(i0, i0 + n_blk)
         # -- predictor / integrator (eq. 3.42-3.48), vectorised over the interval ---------------
-        att = propagate_block(c, blk.gyro - bg, dt, w_ie)
-        a_n = att.apply(blk.accel - ba) + g_n
+        att = prop.propagate(c, blk.gyro - bg)
+        a_n = np.einsum("nij,nj->ni", att, blk.accel - ba) + g_n
         vel_k = e_cor.apply(vel + np.cumsum(e_cor_inv.apply(a_n), axis=0) * dt)
         v_prev = np.vstack([vel, vel_k[:-1]])
         pos = pos + np.sum(0.5 * (v_prev + vel_k), axis=0) * dt
         drift_v = float(np.linalg.norm(vel_k[-1] - vel))
         vel, c_prev, c = vel_k[-1], c, att[-1]
-        drift_a = float(np.linalg.norm((c * c_prev.inv()).as_rotvec()))
+        drift_a = float(np.arccos(np.clip((np.trace(c @ c_prev.T) - 1.0) / 2.0, -1.0, 1.0)))  # rotation angle
         Pm = phi @ Pm @ phi.T + qd
         # -- corrector (eq. 3.57-3.60, paper 001 eq. 35-40, 46-47) -------------------------------
         rows, z, r = [], [], []
@@ -256,7 +243,7 @@ def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: fl
             h = np.zeros((3, N_STATES))
             h[:, A] = np.eye(3)
             h[:, BA] = S
-            za = (c_init * c.inv()).as_rotvec() - S @ ba
+            za = Rotation.from_matrix(ci @ c.T).as_rotvec() - S @ ba
             sel = [0, 1, 2] if "attitude" in use else [2]
             rows.append(h[sel])
             z.append(za[sel])
@@ -267,30 +254,17 @@ def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: fl
             h[:, A] = -ci.T @ _skew(w_ie)
             h[:, BG] = -np.eye(3)
             rows.append(h)
-            z.append(-(w_avg - c.as_matrix().T @ w_ie))  # body-frame form of eq. 38: R diagonal
+            z.append(-(w_avg - c.T @ w_ie))  # body-frame form of eq. 38: R diagonal
             r.append(noise.gyro_white ** 2 / (n_avg * dt))
         H, zv, rv = np.vstack(rows), np.concatenate(z), np.concatenate(r)
-        dx = np.zeros(N_STATES)
-        weights = np.ones(len(zv))
-        for i in range(len(zv)):
-            hi = H[i]
-            ph = Pm @ hi
-            s = float(hi @ ph) + rv[i]
-            innov = zv[i] - hi @ dx
-            gain = ph / s
-            if config.gain_scaling:
-                weights[i] = gain_weight(innov / np.sqrt(s), config.c0, config.c1)
-                gain = gain * weights[i]
-            dx = dx + gain * innov
-            ikh = eye - np.outer(gain, hi)
-            Pm = ikh @ Pm @ ikh.T + rv[i] * np.outer(gain, gain)  # Joseph form: valid for the scaled gain
+        Pm, dx, weights = sequential_update(Pm, H, zv, rv, (config.c0, config.c1) if config.gain_scaling else None)
         # -- feedback (eq. 3.61-3.67) -------------------------------------------------------------
         pos, vel = pos + dx[P], vel + dx[V]
-        c = Rotation.from_rotvec(dx[A]) * c
+        c = Rotation.from_rotvec(dx[A]).as_matrix() @ c
         ba, bg = ba + dx[BA], bg + dx[BG]
         att_sig = np.sqrt(np.diag(Pm[A, A]))
         hist["t"].append(blk.t[-1])
-        hist["rph"].append(euler_rph(c))
+        hist["c"].append(c)
         hist["rph_sig"].append(np.array([att_sig[0], att_sig[1], np.hypot(att_sig[2], config.heading_sigma)]))
         hist["pos"].append(pos.copy())
         hist["vel"].append(vel.copy())
@@ -302,6 +276,6 @@ def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: fl
         hist["da"].append(drift_a)
         hist["w"].append(weights)
     arr = {k: np.array(v) for k, v in hist.items() if k != "w"}
-    return ZuptResult(arr["t"], arr["rph"], arr["rph_sig"], arr["pos"], arr["vel"], arr["ba"], arr["bas"],
-                      arr["bg"], arr["bgs"], arr["dv"], arr["da"], np.array(hist["w"]), c,
+    return ZuptResult(arr["t"], euler_rph(Rotation.from_matrix(arr["c"])), arr["rph_sig"], arr["pos"], arr["vel"], arr["ba"], arr["bas"],
+                      arr["bg"], arr["bgs"], arr["dv"], arr["da"], np.array(hist["w"]), Rotation.from_matrix(c),
                       np.array([roll0, pitch0, heading]), float(samples.t[n_level]), tuple(use))

@@ -142,6 +142,18 @@ class NoiseProcess:
             out += walk
         return out
 
+    def state(self) -> dict:
+        """JSON-ready state (generators and filter memories) for :meth:`restore`."""
+        return {"rng": [r.bit_generator.state for r in (self._rng_white, self._rng_flicker, self._rng_rrw)],
+                "flicker": self._zi_flicker.tolist(), "rrw": self._rrw_state.tolist()}
+
+    def restore(self, state: dict) -> None:
+        """Continue from a :meth:`state` taken earlier (e.g. when a recording is resumed)."""
+        for rng, st in zip((self._rng_white, self._rng_flicker, self._rng_rrw), state["rng"]):
+            rng.bit_generator.state = st
+        self._zi_flicker = np.array(state["flicker"], float).reshape(self._zi_flicker.shape)
+        self._rrw_state = np.array(state["rrw"], float).reshape(self.channels)
+
 
 class IntegratedQuantizer:
     """Quantizes the integral of a (n, C) signal with step ``√12 · Q`` (IEEE 952 Q, u·s).
@@ -170,6 +182,15 @@ class IntegratedQuantizer:
         out[:, self.active] = np.diff(np.vstack([self._count, counts]), axis=0) * (q / self.dt)
         self._integral, self._count = integral[-1], counts[-1]
         return out
+
+    def state(self) -> dict:
+        """JSON-ready state (running integral and count) for :meth:`restore`."""
+        return {"integral": self._integral.tolist(), "count": self._count.tolist()}
+
+    def restore(self, state: dict) -> None:
+        """Continue from a :meth:`state` taken earlier."""
+        self._integral = np.array(state["integral"], float).reshape(self._integral.shape)
+        self._count = np.array(state["count"], float).reshape(self._count.shape)
 
 
 def round_to_resolution(y: np.ndarray, resolution: np.ndarray) -> np.ndarray:

@@ -24,6 +24,8 @@ from workbench.errors import WorkbenchError
 from workbench.grades import Hysteresis, UnitTruth
 from workbench.sim.noise import IntegratedQuantizer, NoiseProcess, round_to_resolution
 
+_BLOCK = 1 << 15  # samples per internal block (cache-friendly; the output does not depend on it)
+
 
 class _PlayOperator:
     """Stateful play (backlash) operator of width ``width_c`` on the temperature (°C)."""
@@ -94,9 +96,18 @@ class VirtualIMU:
                 raise WorkbenchError(f"VirtualIMU.measure: {name}: the unit has a {name} triad but no true input")
             if np.shape(value) != (n, 3):
                 raise WorkbenchError(f"VirtualIMU.measure: {name}: expected shape ({n}, 3), got {np.shape(value)}")
-        if n == 0:
-            return {"gyro": np.zeros((0, 3)), "accel": np.zeros((0, 3)),
-                    "mag": np.zeros((0, 3)) if "mag" in self.truth.triads else None, "temp": np.zeros(0)}
+        blocks = [self._measure_block({k: None if v is None else v[a:a + _BLOCK] for k, v in inputs.items()},
+                                      temp_c[a:a + _BLOCK]) for a in range(0, n, _BLOCK)]
+        y = np.vstack([b[0] for b in blocks]) if blocks else np.zeros((0, 3 * len(self.truth.triads)))
+        result: dict[str, np.ndarray | None] = {"mag": None}
+        for i, name in enumerate(self.truth.triads):
+            result[name] = y[:, 3 * i:3 * i + 3]
+        result["temp"] = np.concatenate([b[1] for b in blocks]) if blocks else np.zeros(0)
+        return result
+
+    def _measure_block(self, inputs: dict, temp_c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Outputs (n, 3 * triads) and thermometer readings (n,) of one block of samples."""
+        n = temp_c.size
         clean = []
         for name in self.truth.triads:
             force = inputs["accel"] if name == "gyro" else None
@@ -108,8 +119,22 @@ class VirtualIMU:
         y = np.hstack(clean) + self._noise.generate(n)
         y = round_to_resolution(self._quantizer.apply(y), self._resolution)
         y = np.clip(y, -self._range, self._range)
-        result: dict[str, np.ndarray | None] = {"mag": None}
-        for i, name in enumerate(self.truth.triads):
-            result[name] = y[:, 3 * i:3 * i + 3]
-        result["temp"] = temp_c + self.truth.temp_sensor_noise_c * self._temp_rng.standard_normal(n)
-        return result
+        return y, temp_c + self.truth.temp_sensor_noise_c * self._temp_rng.standard_normal(n)
+
+    def state(self) -> dict:
+        """JSON-ready state of every noise process and memory, so a resumed recording can
+        continue exactly where an interrupted one stopped (:meth:`restore`)."""
+        return {"noise": self._noise.state(), "quantizer": self._quantizer.state(),
+                "temp_rng": self._temp_rng.bit_generator.state,
+                "play": {t: play.point for t, (_, play) in self._play.items()}}
+
+    def restore(self, state: dict) -> None:
+        """Continue from a :meth:`state` of a VirtualIMU of the same unit."""
+        try:
+            self._noise.restore(state["noise"])
+            self._quantizer.restore(state["quantizer"])
+            self._temp_rng.bit_generator.state = state["temp_rng"]
+            for triad, point in state["play"].items():
+                self._play[triad][1].point = point
+        except (KeyError, ValueError, TypeError) as exc:
+            raise WorkbenchError(f"VirtualIMU.restore: state does not match unit {self.truth.serial} ({exc})") from None

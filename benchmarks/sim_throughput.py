@@ -1,0 +1,67 @@
+"""Throughput of the virtual sensor (workbench.sim.sensor.VirtualIMU), sensor only (no rig).
+
+Prints, per grade, the wall time to simulate one hour at the grade's rate in one call and in
+60 s chunks (as the runner records step by step), and the throughput in samples/s (one
+sample = one time instant of all the unit's channels). The target of issue 3 is one hour of
+a 6-axis IMU at 100 Hz in under 2 s.
+
+    /work/venv/bin/python benchmarks/sim_throughput.py [--hours 1.0] [--repeat 3]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from workbench.grades import draw_unit, load_spec
+from workbench.sim.sensor import VirtualIMU
+
+
+def _inputs(n: int, with_mag: bool):
+    omega = np.tile([1e-5, 2e-5, 5e-5], (n, 1))
+    force = np.tile([0.0, 0.0, -9.80], (n, 1))
+    field = np.tile([27.0, 1.5, 38.0], (n, 1)) if with_mag else None
+    temp = np.linspace(20.0, 30.0, n)
+    return omega, force, field, temp
+
+
+def _best(fn, repeat: int) -> float:
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return min(times)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--hours", type=float, default=1.0)
+    parser.add_argument("--repeat", type=int, default=3)
+    args = parser.parse_args()
+    print(f"{'grade':20s} {'ch':>3s} {'rate Hz':>8s} {'one call s':>11s} {'chunked s':>10s} {'samples/s':>12s}")
+    for grade in ("tactical_low_noise", "industrial_mems", "consumer_9axis", "hg1700"):
+        spec = load_spec(grade)
+        truth = draw_unit(spec, seed=1)
+        n = int(args.hours * 3600 * spec.sample_rate_hz)
+        omega, force, field, temp = _inputs(n, "mag" in truth.triads)
+        chunk = int(60 * spec.sample_rate_hz)
+
+        def one_call():
+            VirtualIMU(truth, seed=2).measure(omega, force, field, temp)
+
+        def chunked():
+            imu = VirtualIMU(truth, seed=2)
+            for a in range(0, n, chunk):
+                imu.measure(omega[a:a + chunk], force[a:a + chunk], None if field is None else field[a:a + chunk],
+                            temp[a:a + chunk])
+
+        t_one, t_chunk = _best(one_call, args.repeat), _best(chunked, args.repeat)
+        print(f"{grade:20s} {3 * len(truth.triads):3d} {spec.sample_rate_hz:8.0f} {t_one:11.3f} {t_chunk:10.3f} "
+              f"{n / t_one:12.3e}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,113 @@
+"""Allan variance: a long static hold at a set temperature; the noise terms of gyros and accels.
+
+Sequence: soak the chamber at ``temperature_c`` (the unit static at ``mount``), then hold
+still for ``duration_s`` (label ``allan``). Analysis
+(:func:`workbench.analysis.allan_fit.analyze_record`): overlapping Allan deviation of every
+axis with 95 % chi-squared intervals (Greenhall EDF), the IEEE Std 952 noise-term fit with
+model selection, and the classic read-offs. Product: a calibration set with the ``noise``
+block (gyro ``arw`` rad/s/√Hz, ``bias_instability`` rad/s, ``rrw`` rad/s²/√Hz, ``quantization``
+rad; accel ``vrw`` m/s²/√Hz, ``bias_instability`` m/s², ``rrw`` m/s³/√Hz; each with ``<name>_ci95``;
+null = not observed by the record). References: thesis (shared/seeds/000_...) tables 1.1, 1.2,
+2.1, 4.1 and eq. 3.50-3.53 (process noise from these terms).
+"""
+
+from __future__ import annotations
+
+from workbench.analysis.allan_fit import TERMS, AllanAnalysis, analyze_record
+from workbench.calset import CalibrationSet
+from workbench.errors import AnalysisError, RigLimitError
+from workbench.plots.allan import plot_triads, term_text
+from workbench.procedure import ProcedureResult
+from workbench.sequence import Hold, Sequence, Soak, with_options
+from workbench.session import ACCEL, GYRO
+
+NAME = "allan"
+TITLE = "Allan variance (long static hold): noise terms with confidence intervals"
+TRIADS = ("accel", "gyro")
+CAMPAIGN_ORDER = 50
+DEFAULTS = {"duration_s": 7200.0, "temperature_c": 25.0, "mount": "z-down", "soak": True,
+            "taus": "octave", "gap_policy": "error"}
+LABEL = "allan"
+
+
+def sequence(spec, duration_s: float = 7200.0, temperature_c: float = 25.0, mount="z-down", soak: bool = True,
+             **_analysis_options) -> Sequence:
+    """Soak at ``temperature_c`` (when ``soak``), then a static hold of ``duration_s`` s at ``mount``."""
+    rate = float(getattr(spec, "sample_rate_hz", 100.0) or 100.0)
+    if duration_s * rate < 1000:
+        raise RigLimitError(f"{NAME}: duration_s {duration_s:g} s gives fewer than 1000 samples at {rate:g} Hz")
+    steps = ([Soak(temperature_c, mount, 0.0, label="soak")] if soak else []) + [Hold(mount, 0.0, duration_s, LABEL)]
+    return with_options(Sequence(NAME, steps), duration_s=duration_s, temperature_c=temperature_c, soak=soak)
+
+
+def _hold_step(session):
+    holds = [s for s in session.steps_of_kind("static") if s.label == LABEL] or session.steps_of_kind("static")
+    if not holds:
+        raise AnalysisError(f"{session.name}: no static step to analyse (expected a hold labelled {LABEL!r})")
+    return max(holds, key=lambda s: s.duration)
+
+
+def analyze(session, taus: str = "octave", gap_policy: str = "error", **_sequence_options) -> ProcedureResult:
+    """Allan analysis of the longest static hold; gyro always, accel when present."""
+    step = _hold_step(session)
+    rate = float(session.sample_rate_hz)
+    analyses: dict[str, AllanAnalysis] = {}
+    for triad, cols, data in (("gyro", GYRO, session.gyro), ("accel", ACCEL, session.accel)):
+        src = f"{session.name}: step {step.index} ({triad})"
+        analyses[triad] = analyze_record(data(step.index), rate, cols, triad, taus, gap_policy, src)
+    cal = CalibrationSet(unit=session.unit, noise={t: a.noise_block() for t, a in analyses.items()},
+                         notes={NAME: {"sample_rate_hz": rate, "duration_s": step.duration,
+                                       "temperature_c": step.temperature_c}})
+    return ProcedureResult(NAME, result=_result_dict(analyses, step), calibration=cal, payload=analyses,
+                           summary=_summary(analyses), warnings=[w for a in analyses.values() for w in a.warnings])
+
+
+def _result_dict(analyses: dict[str, AllanAnalysis], step) -> dict:
+    out: dict = {"step": step.index, "duration_s": step.duration, "temperature_c": step.temperature_c}
+    for triad, an in analyses.items():
+        c = an.ci.curve
+        out[triad] = {
+            "tau_s": c.tau.tolist(), "adev": c.dev.T.tolist(), "adev_lo": an.ci.lo.T.tolist(),
+            "adev_hi": an.ci.hi.T.tolist(), "edf": an.ci.edf.T.tolist(), "alpha": an.ci.alpha.T.tolist(),
+            "terms": an.noise_block(),
+            "tau_range_s": {t: [f.terms[t].tau_range for f in an.fits] for t in TERMS},
+            "read_off": {k: [f.read_off[k] for f in an.fits] for k in an.fits[0].read_off},
+            "chi2_red": [f.chi2_red for f in an.fits],
+        }
+    return out
+
+
+def _summary(analyses: dict[str, AllanAnalysis]) -> list[str]:
+    lines = []
+    for triad, an in analyses.items():
+        for f in an.fits:
+            parts = []
+            for t in TERMS:
+                term = f.terms[t]
+                if term.observed:
+                    lo, hi = (term_text(triad, t, v).split(" ", 1)[1] for v in term.ci95)
+                    parts.append(f"{term_text(triad, t, term.value)} [{lo} .. {hi}]")
+            bounds = [f"{term_text(triad, t, f.terms[t].ci95[1])}" for t in TERMS if not f.terms[t].observed]
+            lines.append(f"{triad} {f.column}: " + "; ".join(parts)
+                         + (f"; not observed (95 % upper bound): {', '.join(bounds)}" if bounds else ""))
+    return lines
+
+
+def figures(result: ProcedureResult) -> dict:
+    """Log-log ADEV with 95 % bands and the fitted terms, one panel per triad."""
+    return {"adev": plot_triads(result.payload)}
+
+
+def noise_terms_lab(result: ProcedureResult) -> list[dict]:
+    """Rows (triad, axis, term, value, 95 % interval) in lab units, for tables (dashboard, reports)."""
+    rows = []
+    for triad, an in result.payload.items():
+        for f in an.fits:
+            for t in TERMS:
+                term = f.terms[t]
+                rows.append({"triad": triad, "axis": f.column, "term": t, "observed": term.observed,
+                             "value": term_text(triad, t, term.value) if term.observed else "not observed",
+                             "ci95": f"{term_text(triad, t, term.ci95[0])} .. {term_text(triad, t, term.ci95[1])}",
+                             "tau_range_s": "" if term.tau_range is None else
+                             f"{term.tau_range[0]:.3g} .. {term.tau_range[1]:.3g}"})
+    return rows

@@ -1,0 +1,98 @@
+"""Ferraris calibration: six static positions + one 360° turn about each axis, no encoder.
+
+For hand-made sessions (e.g. imucal's recording, imported with
+``fixtures/import_profiles/imucal_ferraris.yaml``) and for tables without a rate encoder.
+
+Sequence: the six axis-up/down holds (``dwell_s``), then for x, y, z one turn of
+``turn_deg`` (default -360°: clockwise seen from above with the axis up, i.e. negative
+about the axis) at ``turn_rate_dps`` with the axis up.
+
+Analysis (``workbench analyze ferraris SESSION_DIR``): accelerometer from the static
+positions (:func:`workbench.analysis.turntable.fit_accel`, position tilt estimated when the
+positions scatter beyond the noise, as hand-made positions do); gyro bias and g-sensitivity
+from the same positions (:func:`fit_gyro_static`); gyro ``M`` from the integrated turns
+against the known angle (:func:`workbench.analysis.gyro_fit.fit_gyro_turns`); and checks of
+each turn (:func:`turn_checks`): integrated angle after compensation, closure, wobble,
+tilt of the turn axis, motion just before and after the section.
+
+Reference: Ferraris, Grimaldi, Parvis, "Procedure for effortless in-field calibration of
+three-axis rate gyros and accelerometers", Sensors and Materials 7 (1995) (imucal's method).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from procedures.multiposition import fit_summary, options, position_sigma, result_dict
+from workbench.analysis.gyro_fit import fit_gyro_turns, turn_checks
+from workbench.analysis.turntable import fit_accel, fit_gyro_static
+from workbench.calset import CalibrationSet
+from workbench.errors import ProcedureError
+from workbench.procedure import ProcedureResult
+from workbench.sequence import Hold, Rotate, Sequence
+from workbench.session import Session
+
+NAME = "ferraris"
+TITLE = "Ferraris: six positions + three 360° turns (hand-made or no encoder)"
+TRIADS = ("accel", "gyro")
+CAMPAIGN_ORDER = None
+DEFAULTS = {
+    "dwell_s": 10.0,
+    "turn_deg": -360.0,
+    "turn_rate_dps": 90.0,
+    "position_sigma_deg": "auto",
+    "earth_rate": "auto",
+    "settle_s": 0.0,
+    "window_s": 1.0,
+}
+_SEQUENCE_KEYS = ("dwell_s", "turn_deg", "turn_rate_dps")
+_ANALYSIS_KEYS = ("position_sigma_deg", "earth_rate", "settle_s", "window_s")
+
+
+def sequence(spec, **opts) -> Sequence:
+    """Six holds, then one turn about each body axis held up (see the module docstring)."""
+    o = options(opts, _SEQUENCE_KEYS, DEFAULTS, NAME)
+    turn, rate = float(o["turn_deg"]), float(o["turn_rate_dps"])
+    if turn == 0 or not rate > 0:
+        raise ProcedureError(f"{NAME}: turn_deg must be non-zero and turn_rate_dps positive")
+    steps: list = [Hold(m, 0.0, float(o["dwell_s"]), m)
+                   for m in ("x-up", "x-down", "y-up", "y-down", "z-up", "z-down")]
+    # with the axis up, a negative turn about it is a positive (clockwise) table rotation
+    table_rate = float(np.radians(rate)) * -np.sign(turn)
+    for axis in "xyz":
+        steps.append(Rotate(f"{axis}-up", table_rate, abs(turn) / 360.0, label=f"{axis}_rot"))
+    return Sequence(NAME, steps, options=dict(o))
+
+
+def analyze(session: Session, **opts) -> ProcedureResult:
+    """Ferraris calibration of a session (see the module docstring)."""
+    o = options(opts, _ANALYSIS_KEYS, DEFAULTS, NAME)
+    settle = float(o["settle_s"])
+    acc = fit_accel(session, None, "none", settle_s=settle, position_sigma=position_sigma(o["position_sigma_deg"]))
+    static = fit_gyro_static(session, None, str(o["earth_rate"]), settle_s=settle)
+    gyr = fit_gyro_turns(session, static, acc)
+    checks = turn_checks(session, gyr.model(), acc.model(), window_s=float(o["window_s"]))
+    calset = CalibrationSet(unit=session.unit, triads={"accel": acc.to_calibration(), "gyro": gyr.to_calibration()},
+                            notes={NAME: {"accel": dict(acc.notes), "gyro": dict(gyr.notes),
+                                          "turns": [c.to_dict() for c in checks]}})
+    result = result_dict({"accel": acc, "gyro": gyr})
+    result["turns"] = [c.to_dict() for c in checks]
+    summary = fit_summary(acc) + fit_summary(gyr) + [
+        f"turn {c.label}: compensated gyro turns {np.degrees(c.angle):.3f}° of the nominal "
+        f"{np.degrees(np.linalg.norm(c.nominal)):.0f}°, "
+        f"closure {np.degrees(c.closure):.3f}°, wobble {np.degrees(c.wobble_rms):.2f}° rms, "
+        f"backward {np.degrees(c.backward):.2f}°, axis tilt {np.degrees(c.axis_tilt):.2f}°, "
+        f"gravity change {np.degrees(c.gravity_change):.3f}°, motion before/after "
+        f"{np.degrees(c.motion_before):.3f}°/{np.degrees(c.motion_after):.3f}°" for c in checks]
+    return ProcedureResult(NAME, result=result, calibration=calset,
+                           payload={"accel": acc, "gyro": gyr, "turns": checks}, summary=summary,
+                           warnings=[*acc.warnings, *gyr.warnings])
+
+
+def figures(result: ProcedureResult) -> dict:
+    """Residuals per position and turn, and the turn checks."""
+    from workbench.plots.turntable import plot_residuals, plot_turn_checks
+
+    p = result.payload
+    return {"accel_residuals": plot_residuals(p["accel"]), "gyro_residuals": plot_residuals(p["gyro"]),
+            "turn_checks": plot_turn_checks(p["turns"])}

@@ -1,0 +1,158 @@
+"""Thermal estimators on synthetic arrays and small simulated sessions (workbench/analysis/thermal.py)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from workbench.analysis import thermal as th
+from workbench.errors import AnalysisError, SessionError
+from workbench.grades import Hysteresis, draw_unit, load_spec
+
+DEG = np.pi / 180
+MG = 9.80665e-3
+SPEC = load_spec("industrial_mems")
+# soak profile of the issue: -40..+85 °C in 15 °C steps (85 added as the end point), up then down
+UP = [*np.arange(-40.0, 85.0, 15.0), 85.0]
+TEMPS = np.array(UP + UP[-2::-1])
+DIRECTION = np.array([1] * len(UP) + [-1] * (len(UP) - 1))
+GAP = np.radians(0.05)  # simulated up-minus-down gyro bias hysteresis, rad/s
+
+
+def soak_means(seed: int, triad: str, what: str, sigma: float) -> np.ndarray:
+    """Per-soak values of a drawn unit (truth + the branch term + seeded noise of ``sigma``)."""
+    truth = draw_unit(SPEC, seed)
+    m = getattr(truth, triad)
+    if what == "bias":
+        clean = m.bias + m.thermal.bias_shift(TEMPS)
+        if triad == "gyro":
+            clean = clean + 0.5 * DIRECTION[:, None] * GAP
+    else:
+        clean = np.diag(m.scale_misalignment) + m.thermal.scale_shift(TEMPS)
+    return clean + np.random.default_rng(1000 + seed).normal(0.0, sigma, clean.shape)
+
+
+# Noise of one soak mean, taken from the simulated sweep (tests/analysis/test_thermal_sim.py):
+# gyro bias 0.003 °/s (bias instability 8 °/h and rate random walk over the sweep dominate the
+# 10 s static means), accel bias 0.15 mg, scale factors 40 ppm (six 10 s positions at 10 Hz).
+SIGMAS = {("gyro", "bias"): 0.003 * DEG, ("accel", "bias"): 0.15 * MG, ("accel", "scale"): 40e-6}
+TRUE_ORDER = {"bias": 3, "scale": 2}  # industrial_mems: cubic bias, quadratic scale factor
+
+
+@pytest.mark.parametrize("triad,what", list(SIGMAS))
+def test_order_chosen_correctly_in_nine_of_ten_seeds(triad, what):
+    sigma = SIGMAS[(triad, what)]
+    chosen = []
+    for seed in range(10):
+        y = soak_means(seed, triad, what, sigma)
+        fit = th.fit_thermal_poly(TEMPS, y, np.full(y.shape, sigma), DIRECTION, t_ref_c=25.0,
+                                  quantity=f"{triad}.{what}")
+        chosen.append(fit.order)
+        assert fit.cv_rms.shape == (6, 3)  # held-out residual reported for every order 0..5
+    assert sum(k == TRUE_ORDER[what] for k in chosen) >= 9, chosen
+
+
+def test_coefficients_and_hysteresis_within_their_sigma():
+    sigma = SIGMAS[("gyro", "bias")]
+    truth = draw_unit(SPEC, 3).gyro
+    y = soak_means(3, "gyro", "bias", sigma)
+    fit = th.fit_thermal_poly(TEMPS, y, np.full(y.shape, sigma), DIRECTION, order=3, hysteresis="on")
+    true = np.column_stack([truth.bias, truth.thermal.bias_poly[:, 1:]])
+    # 4-sigma bound per coefficient (12 coefficients: false alarm ~1e-3)
+    assert np.all(np.abs(fit.coeffs - true) < 4 * fit.coeffs_sigma)
+    assert np.all(np.abs(fit.hysteresis - GAP) < 4 * fit.hysteresis_sigma)
+    # hysteresis sigma ~ sigma * sqrt(4 / N) for N points split over two branches
+    assert np.all(fit.hysteresis_sigma < 2 * sigma * np.sqrt(4 / len(TEMPS)))
+    # held-out residual at the chosen order is the noise: sigma, within a factor 2 either way
+    assert np.all((fit.cv_rms_chosen > sigma / 2) & (fit.cv_rms_chosen < 2 * sigma))
+
+
+def test_hysteresis_term_only_kept_when_it_lowers_the_held_out_residual():
+    sigma = SIGMAS[("accel", "bias")]
+    y = soak_means(4, "accel", "bias", sigma)  # no hysteresis in the accel truth
+    fit = th.fit_thermal_poly(TEMPS, y, np.full(y.shape, sigma), DIRECTION)
+    modelled = fit.hysteresis_modelled
+    assert np.all(np.where(modelled, fit.cv_rms_hysteresis[fit.order] < fit.cv_rms[fit.order], True))
+    assert np.all(np.abs(fit.hysteresis) < 4 * fit.hysteresis_sigma)  # reported, consistent with zero
+    g = th.fit_thermal_poly(TEMPS, soak_means(4, "gyro", "bias", SIGMAS[("gyro", "bias")]),
+                            np.full((len(TEMPS), 3), SIGMAS[("gyro", "bias")]), DIRECTION)
+    assert g.hysteresis_modelled.all()  # a 0.05 °/s gap is 17 sigma: the term must be kept
+    assert np.all(np.abs(g.hysteresis - GAP) < 0.2 * GAP)
+
+
+def test_too_few_temperatures_for_the_order():
+    t = np.array([-10.0, 20.0, 50.0])
+    with pytest.raises(AnalysisError, match="3 distinct temperature.*order 3 needs at least 4"):
+        th.fit_thermal_poly(t, np.zeros((3, 3)), order=3, quantity="gyro.bias")
+    fit = th.fit_thermal_poly(t, np.outer(t, [1e-4, 2e-4, 3e-4]), quantity="gyro.bias")
+    assert fit.order <= 1 and any("cannot be cross-validated" in w for w in fit.warnings)
+    point = th.SoakPoint("gyro", 0, (1,), 20.0, 20.0, 0.0, 1, np.zeros(3), np.ones(3), np.zeros(3),
+                         np.full(3, np.nan), True)
+    with pytest.raises(AnalysisError, match=r"soak steps 0, 7.*order 2 needs at least 3"):
+        th.fit_soaks({"gyro": [point, replace(point, soak_step=7, setpoint_c=40.0, temperature_c=40.0)]}, order=2)
+
+
+def test_settling_time_of_a_first_order_lag():
+    # unit temperature after a 15 °C step with time constant tau: rate 15/tau e^(-t/tau);
+    # it falls below tol at t* = tau ln(15 * 60 / (tau * tol)); the detector reports t* plus at
+    # most one window (trailing slope) and the 1/10-window bins
+    tau, tol, window = 300.0, 0.05, 120.0
+    t = np.arange(0.0, 3000.0, 0.5)
+    temp = 20.0 + 15.0 * (1 - np.exp(-t / tau))
+    st = th.settling(t, temp, tol, window)
+    t_star = tau * np.log(15 * 60 / (tau * tol))
+    assert st.settled and t_star - window / 10 <= st.t_settled <= t_star + window
+    ramp = th.settling(t, 20.0 + 0.2 / 60 * t, tol, window)  # 0.2 °C/min: never settles
+    assert not ramp.settled and ramp.t_settled is None and abs(ramp.final_rate_c_per_min - 0.2) < 1e-6
+
+
+# -- small simulated sessions for the bad-input paths (10 Hz, thermal time constant 30 s) ---------
+@pytest.fixture(scope="module")
+def small_soak_session():
+    from procedures import thermal as proc
+    from workbench.sim import simulate
+
+    truth = replace(draw_unit(SPEC, 5), sample_rate_hz=10.0, thermal_time_constant_s=30.0)
+    seq = proc.sequence(SPEC, t_min_c=-10.0, t_max_c=50.0, step_c=15.0, dwell_s=5.0)
+    session, _ = simulate(seq, truth, 5)
+    return session
+
+
+def test_missing_temperature_column_names_the_steps(small_soak_session):
+    s = replace(small_soak_session, samples=small_soak_session.samples.drop(columns=["temp"]))
+    with pytest.raises(SessionError, match=r"column temp .*step\(s\) 0, 7"):
+        th.analyze_thermal(s)
+
+
+def test_unsettled_soak_is_named_and_left_out(small_soak_session):
+    s = small_soak_session
+    groups = th.soak_groups(s)
+    g = groups[2]
+    samples = s.samples.copy()
+    sel = np.isin(samples["step"].to_numpy(), [g.soak_step, *g.steps])
+    t = samples.loc[sel, "t"].to_numpy()
+    samples.loc[sel, "temp"] += 0.5 / 60 * (t - t[0])  # still drifting at 0.5 °C/min
+    res = th.analyze_thermal(replace(s, samples=samples))
+    assert any(f"step {g.soak_step} (soak" in w and "did not settle" in w for w in res.warnings)
+    assert not res.soak_points["gyro"][2].settled
+    assert len(res.fits["gyro.bias"].temperature_c) == len(groups) - 1
+
+
+def test_ramp_too_fast_for_the_thermal_lag_is_named():
+    from procedures import thermal as proc
+    from workbench.sim import simulate
+
+    # unit time constant 600 s; a 5 °C/min ramp over 20 °C lasts 4 min: the unit moves ~6 °C
+    truth = replace(draw_unit(SPEC, 6), sample_rate_hz=5.0, thermal_time_constant_s=600.0)
+    seq = proc.sequence(SPEC, profile="ramp", t_min_c=23.0, t_max_c=43.0, ramp_c_per_min=5.0)
+    session, _ = simulate(seq, truth, 6)
+    _, warnings = th.ramp_series(session, "gyro", window_s=30.0)
+    assert any(w.startswith("step 1 (ramp") and "too fast for the unit's thermal lag" in w for w in warnings)
+
+
+def test_hysteresis_from_play_operator_fixture_value():
+    # the grade fixture's hysteresis model: the gap is the up-minus-down difference (grades.Hysteresis)
+    h = Hysteresis(np.full(3, GAP), 2.0)
+    assert np.allclose(h.gap, GAP)

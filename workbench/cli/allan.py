@@ -1,0 +1,173 @@
+"""``workbench allan``: Allan deviation, intervals and noise terms of any rate recording.
+
+Input: a session folder (its longest static hold, rate from the manifest), or a CSV / Parquet
+file of rate columns in SI (rad/s, m/s^2) with a time column ``t``/``time`` (s) or none when
+``--rate`` is given. Output: a table of the IEEE 952 terms in lab units, ``--out curves.csv``
+(one row per column and tau: deviation, 95 % interval, EDF, noise exponent) and ``--plot``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import typer
+from rich.table import Table
+
+from workbench.analysis.allan_ci import alpha_from_slope, confidence
+from workbench.analysis.allan_fit import TERMS, AllanAnalysis, analyze_record, fit_terms
+from workbench.cli import out
+from workbench.errors import AnalysisError, SessionError
+from workbench.session import ACCEL, GYRO, load_session, read_samples
+
+TIME_COLUMNS = ("t", "time")
+RATE_TOLERANCE = 0.01  # relative spread of sample intervals accepted as a constant rate
+
+
+def quantity_of(columns: list[str]) -> str | None:
+    """``"gyro"`` for gx/gy/gz, ``"accel"`` for ax/ay/az, else None (generic SI data)."""
+    if set(columns) <= set(GYRO):
+        return "gyro"
+    if set(columns) <= set(ACCEL):
+        return "accel"
+    return None
+
+
+def rate_from_time(t: np.ndarray, source: str) -> tuple[float, np.ndarray]:
+    """Sample rate (Hz) from a time column (s) and the rows after which a gap (> 1.5 dt) opens.
+
+    Raises when the intervals (gaps aside) vary by more than :data:`RATE_TOLERANCE`.
+    """
+    dt = np.diff(np.asarray(t, float))
+    if len(dt) == 0 or np.any(~np.isfinite(dt)) or np.any(dt <= 0):
+        row = int(np.argmax(~(dt > 0))) + 1 if len(dt) else 0
+        raise AnalysisError(f"{source}: time column is not strictly increasing (row {row})")
+    nominal = float(np.median(dt))
+    gaps = np.flatnonzero(dt > 1.5 * nominal)
+    regular = np.delete(dt, gaps)
+    spread = float(np.max(np.abs(regular - nominal)) / nominal)
+    if spread > RATE_TOLERANCE:
+        row = int(np.argmax(np.abs(dt - nominal) * (dt <= 1.5 * nominal))) + 1
+        raise AnalysisError(f"{source}: non-constant sample rate: interval {dt[row - 1]:.6g} s at row {row} vs "
+                            f"nominal {nominal:.6g} s (resample first, or give --rate for an index-based record)")
+    return 1.0 / nominal, gaps
+
+
+def load_record(path: Path, columns: list[str] | None, rate: float | None) -> tuple[np.ndarray, float, list[str], str]:
+    """Rate samples (N, C) SI, rate (Hz), column names and a source label from a session or file.
+
+    Gaps in a time column become NaN rows, so the gap policy decides what happens to them.
+    """
+    if path.is_dir():
+        session = load_session(path)
+        static = session.steps_of_kind("static")
+        if not static:
+            raise SessionError(f"{path}: no static step to analyse")
+        step = max(static, key=lambda s: s.duration)
+        cols = columns or GYRO
+        df = session.step_samples(step.index)
+        return _columns(df, cols, path), float(rate or session.sample_rate_hz), cols, f"{path}: step {step.index}"
+    if not path.exists():
+        raise AnalysisError(f"{path}: no such file or session folder")
+    df = read_samples(path)
+    time_col = next((c for c in TIME_COLUMNS if c in df.columns), None)
+    cols = columns or [c for c in df.columns if c not in (*TIME_COLUMNS, "step") and pd.api.types.is_numeric_dtype(df[c])]
+    y = _columns(df, cols, path)
+    if rate is None:
+        if time_col is None:
+            raise AnalysisError(f"{path}: no time column (t or time): give the sample rate with --rate HZ")
+        rate, gaps = rate_from_time(df[time_col].to_numpy(float), str(path))
+        if len(gaps):
+            y = np.insert(y, gaps + 1, np.nan, axis=0)
+    return y, float(rate), cols, str(path)
+
+
+def _columns(df: pd.DataFrame, cols: list[str], path: Path) -> np.ndarray:
+    missing = [c for c in cols if c not in df.columns]
+    if missing:
+        raise AnalysisError(f"{path}: no column(s) {', '.join(missing)} (has {', '.join(map(str, df.columns))})")
+    return df[cols].to_numpy(float)
+
+
+def curves_frame(an: AllanAnalysis) -> pd.DataFrame:
+    """One row per column and tau: tau_s, adev and its 95 % interval (input SI unit), edf, alpha."""
+    c = an.ci.curve
+    rows = [{"column": col, "tau_s": c.tau[k], "m": int(c.m[k]), "n": int(c.n[k]), "adev": c.dev[k, j],
+             "adev_lo95": an.ci.lo[k, j], "adev_hi95": an.ci.hi[k, j], "edf": an.ci.edf[k, j],
+             "alpha": int(an.ci.alpha[k, j])}
+            for j, col in enumerate(c.columns) for k in range(len(c.tau))]
+    return pd.DataFrame(rows)
+
+
+def _print_terms(an: AllanAnalysis) -> None:
+    from workbench.plots.allan import term_text
+
+    unit_note = {"gyro": "gyro, rad/s in", "accel": "accel, m/s^2 in"}.get(an.quantity, "SI in")
+    t = Table("column", *TERMS, "read-off N @1s", "read-off B min/0.664",
+              title=f"IEEE 952 terms ({unit_note}); [95 % interval]; n/o = not observed (< 95 % upper bound)")
+    for f in an.fits:
+        cells = []
+        for name in TERMS:
+            term = f.terms[name]
+            if term.observed:
+                lo, hi = (term_text(an.quantity, name, v).split(" ", 1)[1] for v in term.ci95)
+                cells.append(f"{term_text(an.quantity, name, term.value)}\n[{lo} .. {hi}]")
+            else:
+                cells.append(f"n/o\n< {term_text(an.quantity, name, term.ci95[1]).split(' ', 1)[1]}")
+        cells += [term_text(an.quantity, "white", f.read_off["white"]),
+                  term_text(an.quantity, "bias_instability", f.read_off["bias_instability"])]
+        t.add_row(f.column, *cells)
+    out.print(t)
+
+
+def register(app: typer.Typer) -> None:
+    """Add the ``allan`` command."""
+
+    @app.command("allan")
+    def allan_cmd(
+        source: Path = typer.Argument(..., help="Session folder, or CSV / Parquet file of rate columns (SI)."),
+        columns: str = typer.Option(None, "--columns", help="Comma-separated rate columns (default: gx,gy,gz for a "
+                                                            "session, every numeric column for a file)."),
+        rate: float = typer.Option(None, "--rate", help="Sample rate, Hz (needed when the file has no time column)."),
+        taus: str = typer.Option("octave", "--taus", help="octave | decade | <k>-per-decade"),
+        out_csv: Path = typer.Option(None, "--out", help="Write the curves (one row per column and tau) to this CSV."),
+        plot: Path = typer.Option(None, "--plot", help="Write the ADEV figure (PNG) here."),
+        gap_policy: str = typer.Option("error", "--gap-policy", help="NaN / time gaps: error | longest | split"),
+        stream: bool = typer.Option(False, "--stream", help="Parquet too large for memory: stream it (no gap policy; "
+                                                            "noise exponents from the curve's slopes)."),
+    ) -> None:
+        """Overlapping Allan deviation with 95 % intervals and the IEEE 952 noise terms."""
+        cols = [c.strip() for c in columns.split(",")] if columns else None
+        if stream:
+            an = _streamed(source, cols, rate, taus)
+        else:
+            y, fs, cols, label = load_record(source, cols, rate)
+            an = analyze_record(y, fs, cols, quantity_of(cols), taus, gap_policy, label)
+        for w in an.warnings:
+            out.print(f"[yellow]warning:[/] {w}")
+        _print_terms(an)
+        if out_csv is not None:
+            out_csv.parent.mkdir(parents=True, exist_ok=True)
+            curves_frame(an).to_csv(out_csv, index=False)
+            out.print(f"curves: {out_csv}")
+        if plot is not None:
+            import matplotlib.pyplot as plt
+
+            from workbench.plots.allan import plot_triads
+
+            fig = plot_triads({an.quantity or "data": an})
+            plot.parent.mkdir(parents=True, exist_ok=True)
+            fig.savefig(plot, dpi=110, bbox_inches="tight")
+            plt.close(fig)
+            out.print(f"figure: {plot}")
+
+
+def _streamed(source: Path, cols: list[str] | None, rate: float | None, taus: str) -> AllanAnalysis:
+    from workbench.analysis.allan_stream import stream_deviation
+
+    if source.suffix != ".parquet" or cols is None or rate is None:
+        raise AnalysisError(f"{source}: --stream needs a .parquet file, --columns and --rate")
+    curve = stream_deviation(source, cols, rate, "oadev", taus)
+    ci = confidence(curve, alpha=alpha_from_slope(curve))
+    return AllanAnalysis(ci, fit_terms(ci), quantity_of(cols))

@@ -1,0 +1,10 @@
+"""Alembic environment of the workbench store (run through ``workbench.store.upgrade``)."""
+
+from alembic import context
+
+from workbench.store import Base
+
+connection = context.config.attributes["connection"]
+context.configure(connection=connection, target_metadata=Base.metadata, render_as_batch=True)
+with context.begin_transaction():
+    context.run_migrations()
