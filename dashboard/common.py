@@ -337,6 +337,17 @@ def run_status(folder: Path) -> RunStatus:
                      log, code)
 
 
+_TABLE_CHARS = set("│┃┏┓┗┛┡┩└┘┌┐├┤╭╮╰╯━─═")
+
+
+def run_summary(log: str) -> str:
+    """The lines of a run's log that people read: without the CLI's sequence table and progress bars."""
+    keep = [line for line in log.splitlines()
+            if line.strip() and line.lstrip()[0] not in _TABLE_CHARS and "━━" not in line
+            and not line.strip().startswith("sequence ")]
+    return "\n".join(keep)
+
+
 def list_runs() -> list[Path]:
     """Dashboard run folders, newest first."""
     root = runs_dir()

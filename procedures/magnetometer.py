@@ -106,7 +106,9 @@ def summary_lines(cal) -> list[str]:
              "hard iron: " + ", ".join(f"{a} {pm(v, s, 'uT')}" for a, v, s in zip("xyz", fit.bias, fit.bias_sigma)),
              f"soft iron: largest |I+M - I| element {np.abs(off).max() * 100:.3g} %, "
              f"largest sigma {units.fmt(np.nanmax(fit.soft_iron_sigma) if np.isfinite(fit.soft_iron_sigma).any() else np.nan, '%', 2)}",
-             f"field norm: {pm(fit.field_norm_ut, fit.field_norm_sigma, 'uT', 4)} (scale fixed by {fit.scale_fixed_by})",
+             (f"field norm: {units.fmt(fit.field_norm_ut, 'uT', 4)} (given: fixes the scale of I+M)"
+              if fit.scale_fixed_by == "reference" else
+              f"field norm: {pm(fit.field_norm_ut, fit.field_norm_sigma, 'uT', 4)} (scale fixed by {fit.scale_fixed_by})"),
              f"coverage {cal.quality.coverage:.0%} of the sphere, field-norm residual RMS "
              f"{units.fmt(cal.quality.norm_residual_rms_ut, 'uT', 3)}"]
     if fit.dip is not None:

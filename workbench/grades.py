@@ -313,10 +313,11 @@ def _model_from_dict(d: Mapping) -> TriadModel:
 
 # ---------------------------------------------------------------------------- loading
 def _resolve(name_or_path: str | Path) -> Path:
+    """A grade name -> its fixture; a bare file name not found here -> the fixtures folder."""
     candidate = Path(name_or_path)
-    if candidate.suffix in (".yaml", ".yml") or candidate.parent != Path("."):
+    if candidate.parent != Path(".") or candidate.is_file():
         return candidate
-    return FIXTURES / f"{candidate.name}.yaml"
+    return FIXTURES / (candidate.name if candidate.suffix in (".yaml", ".yml") else f"{candidate.name}.yaml")
 
 
 def grade_names() -> list[str]:

@@ -83,8 +83,8 @@ def resume_procedure(out_dir: Path, progress: Progress | None = None) -> Session
         truth = UnitTruth.from_dict(json.loads(truth_file.read_text())["unit"], str(truth_file))
     else:
         truth = None
-    seed = int(m.get("seed", 0)) + 1000 * (rec.done + 1)  # fresh noise stream for the resumed part
-    rig = open_rig(cfg, truth, seed, rig_state_for_resume(rec))
+    # the saved rig state carries the noise processes: the resumed part continues them exactly
+    rig = open_rig(cfg, truth, int(m.get("seed", 0)), rig_state_for_resume(rec))
     return record(rec, rig, progress)
 
 

@@ -116,18 +116,17 @@ class TriadModel:
         return np.eye(3) + self.scale_misalignment
 
     def _terms(self, n: int, specific_force, temperature_c):
+        """Offset (N, 3) = b(T) + G f, and the thermal scale change (N, 3) or None."""
         offset = np.broadcast_to(self.bias, (n, 3)).copy()
-        gain = self.gain
         if self.g_sensitivity is not None and specific_force is not None:
             offset += np.asarray(specific_force, float) @ self.g_sensitivity.T
+        scale_shift = None
         if self.thermal is not None and temperature_c is not None:
             temperature_c = np.broadcast_to(np.asarray(temperature_c, float), (n,))
             offset += self.thermal.bias_shift(temperature_c)
             if self.thermal.scale_poly.shape[1]:
-                ds = self.thermal.scale_shift(temperature_c)
-                gain = np.broadcast_to(gain, (n, 3, 3)).copy()
-                gain[:, [0, 1, 2], [0, 1, 2]] += ds
-        return offset, gain
+                scale_shift = self.thermal.scale_shift(temperature_c)
+        return offset, scale_shift
 
     def apply(self, true: np.ndarray, specific_force: np.ndarray | None = None,
               temperature_c: np.ndarray | float | None = None) -> np.ndarray:
@@ -137,8 +136,10 @@ class TriadModel:
         scalar °C feeds the thermal terms. Either may be None (term omitted).
         """
         x = np.atleast_2d(np.asarray(true, float))
-        offset, gain = self._terms(x.shape[0], specific_force, temperature_c)
-        u = x @ gain.T if gain.ndim == 2 else np.einsum("nij,nj->ni", gain, x)
+        offset, scale_shift = self._terms(x.shape[0], specific_force, temperature_c)
+        u = x @ self.gain.T
+        if scale_shift is not None:
+            u += scale_shift * x  # M(T) = M + diag(scale_shift)
         return u + self.nonlinearity * u**2 + offset
 
     def compensate(self, measured: np.ndarray, specific_force: np.ndarray | None = None,
@@ -149,7 +150,7 @@ class TriadModel:
         accelerometer output (m/s^2, body frame).
         """
         y = np.atleast_2d(np.asarray(measured, float))
-        offset, gain = self._terms(y.shape[0], specific_force, temperature_c)
+        offset, scale_shift = self._terms(y.shape[0], specific_force, temperature_c)
         r = y - offset
         n = self.nonlinearity
         if np.any(n):
@@ -157,6 +158,8 @@ class TriadModel:
             if np.any(disc < 0):
                 raise CalibrationFormatError("nonlinearity: measured value outside the invertible range")
             r = 2.0 * r / (1.0 + np.sqrt(disc))
-        if gain.ndim == 2:
-            return np.linalg.solve(gain, r.T).T
+        if scale_shift is None:
+            return np.linalg.solve(self.gain, r.T).T
+        gain = np.broadcast_to(self.gain, (y.shape[0], 3, 3)).copy()
+        gain[:, [0, 1, 2], [0, 1, 2]] += scale_shift
         return np.linalg.solve(gain, r[..., None])[..., 0]

@@ -63,6 +63,6 @@ DISPLAY = {
     "gyro": {"bias": "deg/h", "noise_white": "deg/sqrt(h)", "bias_instability": "deg/h", "rrw": "deg/h/sqrt(h)",
              "quantization": "arcsec", "residual": "deg/s"},
     "accel": {"bias": "mg", "noise_white": "ug/sqrt(Hz)", "bias_instability": "ug", "rrw": "m/s/h/sqrt(h)",
-              "quantization": "m/s^2", "residual": "mg"},
+              "quantization": "m/s", "residual": "mg"},
     "mag": {"bias": "uT", "residual": "uT"},
 }

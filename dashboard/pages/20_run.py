@@ -99,9 +99,11 @@ def runs_section() -> None:
     else:
         st.success(f"Run {picked.name} finished: {status.steps_done} steps recorded.")
         st.markdown("**Results**")
-        st.code(status.log or "(empty log)", language=None)  # the CLI's summary in lab units
+        st.code(common.run_summary(status.log) or "(no summary)", language=None)  # the CLI's, in lab units
         if status.result_dir is not None:
             common.show_result(status.result_dir)
+        with st.expander("Full log"):
+            st.code(status.log or "(empty log)", language=None)
         common.page_link("dashboard/pages/95_calibration_sets.py", "Calibration sets →")
 
 

@@ -15,6 +15,7 @@ import pandas as pd
 import streamlit as st
 
 from dashboard import common
+from workbench.calset import file_sha256
 from workbench.errors import WorkbenchError
 
 TITLE = "Sessions"
@@ -39,25 +40,33 @@ def import_profiles() -> dict[str, Path]:
     return {p.stem: p for p in found}
 
 
-def import_upload(profile: Path, name: str, data: bytes) -> Path:
-    """Import an uploaded file through ``profile`` into ``runs/imports/<name>``, all or nothing."""
+def import_upload(profile: Path, name: str, data: bytes, companions: dict[str, bytes]) -> Path:
+    """Import an uploaded recording through ``profile`` into ``runs/imports/<name>``, all or nothing.
+
+    ``companions`` are files the profile refers to next to the recording (e.g. a sections
+    JSON). The importer writes into a temporary folder and validates the session; only a
+    valid session is moved into place and recorded in the store.
+    """
     from workbench.importer import import_file
-    from workbench.session import load_session
 
     dest_root = common.runs_dir() / "imports"
     dest_root.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=dest_root, prefix=".import-") as tmp:
         src = Path(tmp) / Path(name).name
         src.write_bytes(data)
+        for cname, cdata in companions.items():
+            (Path(tmp) / Path(cname).name).write_bytes(cdata)
         out = Path(tmp) / "session"
-        import_file(profile, src, out)
-        session = load_session(out)  # validates what the importer wrote before anything is kept
+        try:
+            session = import_file(profile, src, out)
+        except WorkbenchError as exc:  # name the uploaded file, not the temporary folder
+            raise type(exc)(str(exc).replace(f"{tmp}/", "uploaded ")) from None
         dest = dest_root / f"{Path(name).stem}-{session.id[:8]}"
         if dest.exists():
-            raise FileExistsError(f"{dest} already exists (this file was imported before)")
+            raise FileExistsError(f"{dest} already exists (this recording was imported before)")
         shutil.move(str(out), dest)
     common.store().add_session(session.id, session.unit.serial, session.unit.model, session.procedure or "import",
-                               str(dest), session.samples_sha256() or "", len(session.steps), True)
+                               str(dest), file_sha256(dest / "samples.parquet"), len(session.steps), True)
     return dest
 
 
@@ -81,13 +90,13 @@ with tab_import:
             tmp_profile.write_bytes(up.getvalue())
             profile_path = tmp_profile
     data_file = st.file_uploader("Recording", type=["csv", "parquet", "txt", "dat"], key="imp.data")
+    companions = st.file_uploader("Companion files the profile refers to (e.g. a sections JSON)",
+                                  accept_multiple_files=True, key="imp.companions") or []
     if st.button("Import", disabled=profile_path is None or data_file is None, key="imp.go"):
         try:
-            dest = import_upload(profile_path, data_file.name, data_file.getvalue())
+            dest = import_upload(profile_path, data_file.name, data_file.getvalue(),
+                                 {c.name: c.getvalue() for c in companions})
             st.success(f"Imported into {dest}")
-            st.session_state["sess.pick"] = None
-        except (WorkbenchError, FileExistsError) as exc:
-            common.show_error(exc, f"import of {data_file.name}")
         except Exception as exc:  # noqa: BLE001 - unreadable uploads raise many types; nothing was kept
             common.show_error(exc, f"import of {data_file.name}")
 

@@ -175,6 +175,19 @@ def test_maytag_bias_instability_matches_allan_theory_and_thesis_repeatability()
     assert max(abs(row["distance_mrad"] - 0) for row in table) > 0
 
 
+def test_theory_from_the_data_when_no_grade_is_known():
+    """Without a grade the Allan theory is the session's own overlapping ADEV at the dwell; ARW is not observed."""
+    s = synth_session(maytag_angles(40), fs=4.0, seed=9)
+    nf = nfm.find_north(s, "maytagging")
+    assert nf.theory["source"].startswith("data")
+    assert np.isnan(nf.theory["arw_unit_sigma"])
+    res, _ = nfm.to_result(nf)
+    assert res["theory"]["arw_pair_sigma_mrad"] is None
+    # white noise: ADEV(58 s) = N / sqrt(58); ~40 min of data, ~40 averages: ADEV known to ~15 %, 40 %
+    ref = th.pair_azimuth_sigma(NOISE.white[0] / np.sqrt(58), LAT, NOISE.white[1] / np.sqrt(58), np.radians(102))
+    assert nf.theory["allan_unit_sigma"] == pytest.approx(ref, rel=0.4)
+
+
 def test_abba_ordering_cancels_a_linear_drift():
     """ABBA pairs (A,B),(B,A) see the drift with opposite signs; their mean cancels it (ABAB does not)."""
     drift = (4e-9, -2e-9, 0.0)  # rad/s/s: x changes by 2.4e-7 rad/s per 60 s dwell -> ~2 mrad per ABAB pair

@@ -9,7 +9,7 @@ import pytest
 
 from workbench.analysis import thermal as th
 from workbench.errors import AnalysisError, SessionError
-from workbench.grades import Hysteresis, draw_unit, load_spec
+from workbench.grades import draw_unit, load_spec
 
 DEG = np.pi / 180
 MG = 9.80665e-3
@@ -88,7 +88,7 @@ def test_too_few_temperatures_for_the_order():
         th.fit_thermal_poly(t, np.zeros((3, 3)), order=3, quantity="gyro.bias")
     fit = th.fit_thermal_poly(t, np.outer(t, [1e-4, 2e-4, 3e-4]), quantity="gyro.bias")
     assert fit.order <= 1 and any("cannot be cross-validated" in w for w in fit.warnings)
-    point = th.SoakPoint("gyro", 0, (1,), 20.0, 20.0, 0.0, 1, np.zeros(3), np.ones(3), np.zeros(3),
+    point = th.SoakPoint("gyro", 0, (1,), 20.0, 20.0, 0.0, 100.0, 1, np.zeros(3), np.ones(3), np.zeros(3),
                          np.full(3, np.nan), True)
     with pytest.raises(AnalysisError, match=r"soak steps 0, 7.*order 2 needs at least 3"):
         th.fit_soaks({"gyro": [point, replace(point, soak_step=7, setpoint_c=40.0, temperature_c=40.0)]}, order=2)
@@ -151,8 +151,3 @@ def test_ramp_too_fast_for_the_thermal_lag_is_named():
     _, warnings = th.ramp_series(session, "gyro", window_s=30.0)
     assert any(w.startswith("step 1 (ramp") and "too fast for the unit's thermal lag" in w for w in warnings)
 
-
-def test_hysteresis_from_play_operator_fixture_value():
-    # the grade fixture's hysteresis model: the gap is the up-minus-down difference (grades.Hysteresis)
-    h = Hysteresis(np.full(3, GAP), 2.0)
-    assert np.allclose(h.gap, GAP)

@@ -5,6 +5,8 @@ import subprocess
 import sys
 import time
 
+import numpy as np
+
 import pytest
 
 from workbench.session import load_session
@@ -46,3 +48,9 @@ def test_killed_run_leaves_completed_steps_readable_and_resumes(tmp_path):
     assert not (out / "parts").exists()
     t = session.samples["t"].to_numpy()
     assert (t[1:] > t[:-1]).all()  # time continues across the resume
+    # the noise processes continue exactly: the resumed session equals an uninterrupted one
+    whole = tmp_path / "whole"
+    subprocess.run([sys.executable, "-c", RECORD, str(whole)], env=env, check=True)
+    uninterrupted = load_session(whole)
+    cols = ["t", "step", "gx", "gy", "gz", "ax", "ay", "az", "temp", "table_angle"]
+    assert np.array_equal(session.samples[cols].to_numpy(), uninterrupted.samples[cols].to_numpy())

@@ -35,3 +35,32 @@ def seeded_db(tmp_path, monkeypatch):
     store.add_set(make_set(BIAS_V1))
     store.add_set(make_set(BIAS_V2))
     return store
+
+
+def make_session(n_per_step: int = 100, rate_hz: float = 10.0):
+    """A two-step static session (z-down, x-up) at ``rate_hz`` with gravity on the down axis, in memory."""
+    import pandas as pd
+
+    from workbench.session import Session, Site, StepRecord
+    from workbench.sequence import mount_matrix
+
+    g = 9.80665  # m/s^2
+    rows, steps = [], []
+    for i, (mount, acc) in enumerate((("z-down", (0, 0, -g)), ("x-up", (g, 0, 0)))):
+        t = (i * n_per_step + np.arange(n_per_step)) / rate_hz
+        rows.append(pd.DataFrame({"t": t, "step": i, "gx": 1e-5, "gy": 0.0, "gz": 0.0,
+                                  "ax": acc[0], "ay": acc[1], "az": acc[2]}))
+        steps.append(StepRecord(i, "static", float(t[0]), float(t[-1]) + 0.5 / rate_hz, mount_matrix(mount),
+                                label=mount))
+    return Session("sess-0001", Unit(SERIAL, "test-imu"), Site(40.8, table_zero_azimuth_deg=0.0), rate_hz,
+                   "multiposition", steps, pd.concat(rows, ignore_index=True))
+
+
+@pytest.fixture
+def stored_session(seeded_db, tmp_path):
+    """A session folder written with write_session and recorded in the seeded store."""
+    from workbench.session import write_session
+
+    folder = write_session(make_session(), tmp_path / "session")
+    seeded_db.add_session("sess-0001", SERIAL, "test-imu", "multiposition", str(folder), n_steps=2)
+    return folder

@@ -76,9 +76,14 @@ def test_calibration_sets_download_every_format(seeded_db):
 
     at = page("95_calibration_sets.py")
     assert not at.exception
-    buttons = [e for e in at.get("download_button")]
-    assert len(buttons) == len(registry.exporters()) > 0
-    assert not at.error
+    # every installed format gives a download button, or a readable error naming the format when the
+    # set cannot be expressed in it (e.g. a format needing a noise term the set has as not observed)
+    labels = [b.proto.label for b in at.get("download_button")]
+    refused = [e for e in texts(at, "error") if e.startswith("export ")]
+    for fmt, mod in registry.exporters().items():
+        n = sum(label == f"{fmt} ({mod.SUFFIX})" for label in labels) + sum(e.startswith(f"export {fmt}:") for e in refused)
+        assert n == 1, f"format {fmt}: no download button and no error"
+    assert "json (.json)" in labels  # the canonical format always exports
 
 
 def test_calibration_sets_empty_store(tmp_path, monkeypatch):
@@ -205,3 +210,182 @@ def test_no_procedures_installed(seeded_db, monkeypatch):
     at = page("20_run.py")
     assert not at.exception
     assert any("No procedures" in i for i in texts(at, "info"))
+
+
+# -- Sessions page ---------------------------------------------------------------------
+PROFILE = """format: workbench-import/1
+sample_rate_hz: 10.0
+time: {counter: n}
+columns:
+  gx: {column: gyr_x, unit: deg/s}
+  gy: {column: gyr_y, unit: deg/s}
+  gz: {column: gyr_z, unit: deg/s}
+  ax: {column: acc_x, unit: g}
+  ay: {column: acc_y, unit: g}
+  az: {column: acc_z, unit: g}
+unit: {serial: IMP-7, model: imported imu}
+site: {latitude_deg: 45.0}
+sections:
+  inline: {flat: [0, 50], nose_up: [50, 100]}
+  steps:
+    flat: {kind: static, mount: z-down}
+    nose_up: {kind: static, mount: x-up}
+"""
+
+
+def _recording_csv(n: int = 100) -> bytes:
+    lines = ["n,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z"]
+    lines += [f"{i},0.01,0,0,{1.0 if i >= 50 else 0.0},0,{0.0 if i >= 50 else -1.0}" for i in range(n)]
+    return ("\n".join(lines) + "\n").encode()
+
+
+def _import(at: AppTest, data: tuple[str, bytes, str], profile: str = PROFILE) -> AppTest:
+    at.radio(key="imp.source").set_value("upload").run()
+    at.file_uploader(key="imp.profile_upload").set_value(("profile.yaml", profile.encode(), "application/yaml"))
+    at.file_uploader(key="imp.data").set_value(data).run()
+    return at.button(key="imp.go").click().run()
+
+
+def _imports(db_tmp: Path) -> list[Path]:
+    root = db_tmp / "runs" / "imports"
+    return sorted(root.iterdir()) if root.exists() else []
+
+
+def test_sessions_browse_steps_and_plots(stored_session):
+    at = page("30_sessions.py")
+    assert not at.exception and not at.error
+    assert at.metric[0].value == "DASH-001" and at.metric[2].value == "200"
+    steps = at.dataframe[0].value
+    # 100 samples at 10 Hz: t_start..t_end = first sample .. last sample + half a sample period = 9.95 s
+    assert list(steps["kind"]) == ["static", "static"] and list(steps["duration_s"]) == [9.95, 9.95]
+    at.selectbox(key="sess.step").select("1: static x-up").run()
+    assert not at.exception
+    assert any("accel (body frame)" in c.value for c in at.caption)
+
+
+def test_sessions_bad_folder_is_readable(seeded_db, tmp_path):
+    at = page("30_sessions.py")
+    at.selectbox(key="sess.pick").select("(type a folder)").run()
+    at.text_input(key="sess.pick.typed").input(str(tmp_path)).run()
+    assert not at.exception
+    assert any("no session.json" in e for e in texts(at, "error"))
+
+
+def test_sessions_import_through_profile(seeded_db, tmp_path):
+    at = _import(page("30_sessions.py"), ("rec.csv", _recording_csv(), "text/csv"))
+    assert not at.exception and not at.error, texts(at, "error")
+    assert any("Imported into" in s for s in texts(at, "success"))
+    (folder,) = _imports(tmp_path)
+    sessions = seeded_db.list_sessions("IMP-7")
+    assert len(sessions) == 1 and sessions[0].path == str(folder) and sessions[0].n_steps == 2
+
+
+def test_sessions_import_not_a_recording_keeps_nothing(seeded_db, tmp_path):
+    at = _import(page("30_sessions.py"), ("rec.csv", b"\x00\x01garbage\xff" * 50, "text/csv"))
+    assert not at.exception
+    assert any("uploaded rec.csv: not a readable recording" in e for e in texts(at, "error"))
+    assert not texts(at, "success")
+    assert _imports(tmp_path) == [] and seeded_db.list_sessions() == []
+
+
+def test_sessions_import_profile_not_matching_columns(seeded_db, tmp_path):
+    at = _import(page("30_sessions.py"), ("rec.csv", _recording_csv(), "text/csv"),
+                 profile=PROFILE.replace("gyr_y", "gyro_y"))
+    assert not at.exception
+    assert any("'gyro_y'" in e for e in texts(at, "error"))
+    assert _imports(tmp_path) == [] and seeded_db.list_sessions() == []
+
+
+def test_downsample_keeps_extremes_and_bounds_points():
+    import numpy as np
+    import pandas as pd
+
+    from dashboard.common import downsample
+
+    # 4 h at 100 Hz with one spike: the envelope must keep the spike and stay under max_points
+    n = 4 * 3600 * 100
+    df = pd.DataFrame({"t": np.arange(n) / 100.0, "gx": np.zeros(n)})
+    df.loc[777_777, "gx"] = 5.0
+    small = downsample(df, max_points=3000)
+    assert len(small) <= 3000 and small["gx"].max() == 5.0
+    assert small["t"].is_monotonic_increasing and small["t"].iloc[0] == 0.0 and small["t"].iloc[-1] == df["t"].iloc[-1]
+
+
+# -- helpers the analysis pages use: result_picker / show_result -------------------------------
+ANALYSIS_PAGE = """
+from dashboard import common
+result = common.result_picker("toy", key="toy")
+if result is not None:
+    common.show_result(result)
+"""
+
+
+@pytest.fixture
+def toy_procedure(stored_session, monkeypatch):
+    """Procedure ``toy``: mean gyro x over the session (rad/s); fails on option ``fail``."""
+    from types import SimpleNamespace
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from dashboard import common
+    from workbench import registry
+    from workbench.errors import AnalysisError
+    from workbench.procedure import ProcedureResult
+
+    def analyze(session, fail=False):
+        if fail:
+            raise AnalysisError(f"{session.name}: step 1 (static): not enough samples for the toy fit")
+        mean = float(session.gyro()[:, 0].mean())
+        return ProcedureResult("toy", {"gyro_x_mean": mean}, payload=mean,
+                               summary=[f"gyro x mean: {common.lab(mean, 'deg/h', 1e-6)}"], warnings=["toy warning"])
+
+    def figures(result):
+        fig, ax = plt.subplots()
+        ax.axhline(result.payload)
+        return {"toy_mean": fig}
+
+    toy = SimpleNamespace(NAME="toy", TITLE="toy", DEFAULTS={"fail": False}, analyze=analyze, figures=figures,
+                          sequence=None)
+    monkeypatch.setattr(registry, "procedures", lambda: {"toy": toy})
+    stored = common.store()
+    stored.add_session("sess-toy", "DASH-001", "test-imu", "toy", str(stored_session), n_steps=2)
+    return toy
+
+
+def test_result_picker_analyzes_and_shows_figures(toy_procedure):
+    at = AppTest.from_string(ANALYSIS_PAGE, default_timeout=TIMEOUT).run()
+    assert not at.exception and not at.error
+    # gyro x is 1e-5 rad/s in every sample = 2.063 deg/h (1e-5 * 180/pi * 3600)
+    assert any("gyro x mean: 2.063 ± 0.21 °/h" in c.value for c in at.code)
+    assert any("toy warning" in w for w in texts(at, "warning"))
+    assert len(at.get("imgs")) == 1 or len(at.get("pyplot")) == 1 or at.get("image")
+
+
+def test_result_picker_analysis_error_is_readable(toy_procedure):
+    at = AppTest.from_string(ANALYSIS_PAGE, default_timeout=TIMEOUT).run()
+    at.checkbox(key="toy.options.toy.fail").check().run()
+    assert not at.exception
+    assert any("not enough samples for the toy fit" in e for e in texts(at, "error"))
+
+
+def test_result_picker_without_procedure(seeded_db):
+    at = AppTest.from_string(ANALYSIS_PAGE.replace('"toy"', '"not-installed"'), default_timeout=TIMEOUT).run()
+    assert not at.exception
+    assert any("not installed yet" in i for i in texts(at, "info"))
+
+
+def test_overview_lists_units_sessions_and_runs(fake_run, stored_session):
+    from dashboard import common
+
+    folder = common.start_run("ok", next(iter(common.unit_grades().values())))
+    _wait_for_end(folder)
+    at = page("10_overview.py")
+    assert not at.exception and not at.error
+    units = at.dataframe[0].value
+    assert list(units.serial) == ["DASH-001"] and units.status.iloc[0] == "awaiting approval"
+    assert at.dataframe[1].value.procedure.iloc[0] == "multiposition"
+    runs = at.dataframe[2].value
+    assert runs.state.iloc[0] == "done" and runs.progress.iloc[0] == 100

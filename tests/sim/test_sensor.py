@@ -1,6 +1,7 @@
 """The virtual IMU against the truth of the simulation and the IEEE 952 closed forms."""
 
 import dataclasses
+import json
 
 import allantools
 import numpy as np
@@ -162,7 +163,6 @@ def test_missing_or_misshapen_input_is_an_error():
 def test_state_restore_continues_exactly():
     # A recording interrupted after 1200 samples and resumed from the saved (JSON) state in a
     # new VirtualIMU equals the uninterrupted recording.
-    import json
     truth = _hysteresis_unit()
     n = 2000
     omega, force, _ = _static_inputs(Rotation.identity(), n)

@@ -5,8 +5,10 @@ autocorrelation of the phase decimated by m (Riley & Greenhall 2004): after a qu
 detrend the series is differenced until delta = r1 / (1 + r1) < 0.25 (at most d times, d = 2
 for Allan, 3 for Hadamard variances); alpha = 2 - 2 (delta + d_used), rounded. For rate data
 alpha = 0 is white rate noise (ARW/VRW), -1 flicker (bias instability), -2 random walk (RRW),
-2 white phase (quantization). Where fewer than 30 decimated points remain, the estimate of
-the previous tau is carried over.
+2 white phase (quantization). Where fewer than 100 decimated points remain, the short
+series gives an unreliable exponent: there the exponent carried over from the last
+identified tau and the one from the curve's local slope are both candidates, and the one
+with fewer degrees of freedom (the wider interval) is used.
 
 The equivalent degrees of freedom follow Greenhall & Riley, "Uncertainty of stability
 variances based on finite differences" (2003): edf = 1 / inv_edf with
@@ -31,7 +33,7 @@ from scipy.stats import chi2
 from workbench.analysis.allan import DeviationCurve
 
 J_MAX = 2000  # terms of the Greenhall sum evaluated directly (the paper uses 100)
-MIN_POINTS_ID = 30  # decimated phase points needed for the lag-1 noise identification
+MIN_POINTS_ID = 100  # decimated phase points needed for the lag-1 noise identification
 MAX_POINTS_ID = 1 << 16  # decimated points used (r1 then has a standard error ~0.004)
 _D = {"oadev": 2, "mdev": 2, "ohdev": 3}
 _ALPHA_RANGE = {"oadev": (-2, 2), "mdev": (-2, 2), "ohdev": (-4, 2)}
@@ -82,15 +84,14 @@ def noise_id(x: np.ndarray, m: int, dmax: int) -> float:
 
 
 def identify(x: np.ndarray, m: np.ndarray, kind: str) -> np.ndarray:
-    """Rounded alpha (K, C) for phase ``x`` (C, L) at factors ``m``; short series carry over."""
+    """Rounded alpha (K, C) for phase ``x`` (C, L) at factors ``m``; NaN where the decimated
+    series has fewer than :data:`MIN_POINTS_ID` points (too short to identify reliably)."""
     lo, hi = _ALPHA_RANGE[kind]
-    out = np.zeros((len(m), x.shape[0]))
+    out = np.full((len(m), x.shape[0]), np.nan)
     for c in range(x.shape[0]):
-        last = 0.0
         for k, mk in enumerate(m):
             if x.shape[1] // mk >= MIN_POINTS_ID:
-                last = float(np.clip(np.round(noise_id(x[c], int(mk), _D[kind])), lo, hi))
-            out[k, c] = last
+                out[k, c] = float(np.clip(np.round(noise_id(x[c], int(mk), _D[kind])), lo, hi))
     return out
 
 
@@ -182,11 +183,35 @@ def confidence(curve: DeviationCurve, x: np.ndarray | None = None, alpha: np.nda
     if alpha is None:
         if x is None:
             raise ValueError("confidence: give the phase x or the noise exponents alpha")
-        alpha = identify(x, curve.m, curve.kind)
-    n_phase = curve.n_samples + 1
-    edf = np.array([[edf_greenhall(int(a), _D[curve.kind], int(mk), n_phase, True, curve.kind == "mdev")
-                     for a in row] for mk, row in zip(curve.m, alpha)]).reshape(alpha.shape)
+        alpha = _fill_short(curve, identify(x, curve.m, curve.kind))
+    edf = _edf(curve, alpha)
     q = (1.0 - level) / 2.0
     lo = curve.dev * np.sqrt(edf / chi2.ppf(1.0 - q, edf))
     hi = curve.dev * np.sqrt(edf / chi2.ppf(q, edf))
     return DeviationCI(curve, alpha, edf, lo, hi, level)
+
+
+def _edf(curve: DeviationCurve, alpha: np.ndarray) -> np.ndarray:
+    return np.array([[_edf_one(curve, k, a) for a in alpha[k]] for k in range(len(curve.m))]).reshape(alpha.shape)
+
+
+def _fill_short(curve: DeviationCurve, alpha: np.ndarray) -> np.ndarray:
+    """Fill the taus too long to identify: of the exponent carried from the last identified
+    tau and the one from the curve's local slope, take the one giving fewer degrees of
+    freedom (the wider, conservative interval)."""
+    slope = alpha_from_slope(curve)
+    out = alpha.copy()
+    for c in range(alpha.shape[1]):
+        last = slope[0, c]
+        for k in range(len(curve.m)):
+            if np.isfinite(alpha[k, c]):
+                last = alpha[k, c]
+                continue
+            cands = {last, slope[k, c]}
+            out[k, c] = min(cands, key=lambda a: _edf_one(curve, k, a))
+    return out
+
+
+def _edf_one(curve: DeviationCurve, k: int, a: float) -> float:
+    """EDF of point k of ``curve`` for noise exponent ``a``."""
+    return edf_greenhall(int(a), _D[curve.kind], int(curve.m[k]), curve.n_samples + 1, True, curve.kind == "mdev")

@@ -10,7 +10,8 @@ static fit and the compensated accelerometer ``f(t)``, the integral over turn ``
 
 so ``I + M = A Theta^-1`` with ``A = [A_1 A_2 A_3]``, ``Theta = [theta_1 theta_2 theta_3]``.
 The 1-sigma of each column comes from the bias and G uncertainty times the turn duration and
-the white noise integrated over it; it does not include the error of the turn angle itself,
+the white noise integrated over it, and a tilt of the turn axis (by default the position tilt of
+the accelerometer fit); it does not include the error of the turn angle itself,
 which the data cannot observe: :func:`turn_checks` measures how far each hand-made turn is
 from the assumed one (motion just before and after the section, wobble of the rotation axis,
 tilt of the turn axis from the vertical, change of the gravity direction across the turn).
@@ -52,7 +53,7 @@ def _white_var(session: Session, static: TriadFit) -> np.ndarray:
 
 
 def fit_gyro_turns(session: Session, static: TriadFit, accel: TriadFit,
-                   steps: list[int] | None = None) -> TriadFit:
+                   steps: list[int] | None = None, axis_sigma: float | None = None) -> TriadFit:
     """Gyro ``M`` (full 3x3) from three turns, with bias and ``G`` taken from ``static``.
 
     ``static``: :func:`workbench.analysis.turntable.fit_gyro_static` result; ``accel``: the
@@ -60,6 +61,11 @@ def fit_gyro_turns(session: Session, static: TriadFit, accel: TriadFit,
     the turn steps (None = all rate steps). Returns a gyro :class:`TriadFit` (nonlinearity
     not observed); its residual table holds the static rows and one row per turn (mean rate
     over the turn, rad/s).
+
+    ``axis_sigma`` (rad): 1-sigma tilt of each turn's axis in the body (fixture or hand);
+    a tilt leaks ``|theta| e`` into the two other axes, so it adds ``(|theta| s)^2`` to their
+    variance (``(|theta| s^2 / 2)^2`` along the axis). Default: the accelerometer fit's
+    position tilt (``accel.notes["position_sigma_rad"]``).
     """
     check_site(session)
     recs = session.steps_of_kind("rate") if steps is None else [session.step(i) for i in steps]
@@ -75,14 +81,18 @@ def fit_gyro_turns(session: Session, static: TriadFit, accel: TriadFit,
     bias, g = static.bias, static.g_sensitivity if static.g_sensitivity is not None else np.zeros((3, 3))
     g_sig = np.nan_to_num(static.g_sensitivity_sigma if static.g_sensitivity_sigma is not None else np.zeros((3, 3)))
     white = _white_var(session, static)
+    tilt = float(accel.notes.get("position_sigma_rad", 0.0)) if axis_sigma is None else float(axis_sigma)
     integrals, variances, durations = [], [], []
-    for r in recs:
+    for k, r in enumerate(recs):
+        angle = np.linalg.norm(theta[:, k])
+        along = (theta[:, k] / angle) ** 2
+        axis_var = (angle * tilt) ** 2 * (1 - along) + (angle * tilt**2 / 2) ** 2 * along
         y = session.gyro(r.index)
         f = acc_model.compensate(session.accel(r.index))
         integrals.append(np.sum(y - bias - f @ g.T, axis=0) * dt)
         t = len(y) * dt
         f_mean = f.mean(axis=0)
-        variances.append((t * static.bias_sigma) ** 2 + t * dt * white + (t * g_sig @ np.abs(f_mean)) ** 2)
+        variances.append((t * static.bias_sigma) ** 2 + t * dt * white + (t * g_sig @ np.abs(f_mean)) ** 2 + axis_var)
         durations.append(t)
     a = np.column_stack(integrals)  # (3, K)
     pinv = np.linalg.pinv(theta)  # (K, 3): I + M = A pinv(Theta)
@@ -111,7 +121,7 @@ def fit_gyro_turns(session: Session, static: TriadFit, accel: TriadFit,
         f"{session.name}: scale factor and misalignment assume each turn is exactly "
         f"{', '.join(f'{np.degrees(np.linalg.norm(theta[:, k])):.0f}°' for k in range(theta.shape[1]))} about its "
         "body axis; their sigma holds the sensor noise only (see the turn checks)"]
-    notes = {**dict(static.notes), "turn_steps": [r.index for r in recs],
+    notes = {**dict(static.notes), "turn_steps": [r.index for r in recs], "turn_axis_sigma_rad": tilt,
              "turn_durations_s": durations, "method": "Ferraris: integrated turns against the known angle"}
     return replace(static, scale_misalignment=m, scale_misalignment_sigma=m_sigma,
                    residuals=pd.concat([static.residuals, rows], ignore_index=True),

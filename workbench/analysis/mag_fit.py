@@ -23,6 +23,7 @@ import numpy as np
 from scipy.linalg import polar
 from scipy.spatial.transform import Rotation
 
+from workbench.errors import AnalysisError
 from workbench.model import TriadModel
 
 FIELD_RANGE_UT = (15.0, 80.0)  # µT, range of the geomagnetic field magnitude at the Earth's surface
@@ -219,6 +220,10 @@ def build_fit(method: str, sol: Solution, unpack: Callable[[np.ndarray], tuple[n
     ``observes_rotation`` says whether the data fix the rotation part of ``I + M`` (attitude-aided
     fits) or it is fixed by convention (symmetric ``I + M``).
     """
+    if np.linalg.det(unpack(sol.p)[1]) <= 0:
+        raise AnalysisError(f"{method} fit: degenerate solution (I+M not orientation-preserving); "
+                            "the data do not support this model")
+
     def outputs(p):
         b, g = unpack(p)
         a, f, _ = gain_to_model(g, field_norm_ut)

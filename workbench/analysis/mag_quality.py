@@ -4,10 +4,10 @@
   field directions. The grid has ``n_bands`` bands of equal height in ``z`` (Archimedes: equal
   height = equal area) each cut into ``n_lon`` equal longitude cells, so every cell has area
   ``4 pi / (n_bands n_lon)``; the default 12 x 24 cells are ~12° across.
-- :func:`flatness`: smallest / largest principal standard deviation of the raw point cloud;
-  near zero when all points lie in one plane (a level yaw sweep), where a 3D fit is not
-  observable.
-- :func:`assess`: the :class:`Quality` record of a fit (coverage, flatness, field-norm
+- :func:`thickness`: smallest principal standard deviation (µT) of the raw point cloud; about
+  the noise when all points lie in one plane (a level yaw sweep), where a 3D fit is not
+  observable (a ±15° fixture gives ~4 µT, a level one 0.3 µT at 0.3 µT noise).
+- :func:`assess`: the :class:`Quality` record of a fit (coverage, thickness, field-norm
   residual, spread of the gravity directions, the fitted norm against the 15-80 µT range and
   an optional reference) and its warnings.
 """
@@ -21,7 +21,7 @@ import numpy as np
 from workbench.analysis.mag_fit import FIELD_RANGE_UT, MagFit
 
 COVERAGE_FOR_ELLIPSOID = 0.5  # fraction of the sphere an unaided 9-parameter ellipsoid needs
-FLAT_LIMIT = 0.05  # flatness below which the cloud counts as planar
+FLAT_LIMIT_UT = 2.0  # µT, thickness below which the cloud counts as planar (±5° of tilt gives ~1.4 µT)
 NORM_TOLERANCE = 0.05  # relative difference to a reference field norm that triggers a warning
 
 
@@ -33,10 +33,10 @@ def sphere_coverage(directions: np.ndarray, n_bands: int = 12, n_lon: int = 24) 
     return len(set(zip(band.tolist(), lon.tolist()))) / (n_bands * n_lon)
 
 
-def flatness(points: np.ndarray) -> float:
-    """Smallest over largest principal standard deviation of a point cloud (N, 3); 0 = coplanar."""
+def thickness(points: np.ndarray) -> float:
+    """Smallest principal standard deviation (µT) of a point cloud (N, 3) µT; ~noise when coplanar."""
     sv = np.linalg.svd(points - points.mean(axis=0), compute_uv=False)
-    return float(sv[-1] / sv[0]) if sv[0] > 0 else 0.0
+    return float(sv[-1] / np.sqrt(len(points)))
 
 
 def gravity_spread(down: np.ndarray) -> float:
@@ -52,7 +52,7 @@ class Quality:
     """Quality figures of a calibration (µT, rad, fractions) and the warnings they raise."""
 
     coverage: float
-    flatness: float
+    thickness_ut: float
     gravity_spread: float | None
     norm_residual_rms_ut: float
     norm_residual_max_ut: float
@@ -60,7 +60,7 @@ class Quality:
     warnings: tuple[str, ...]
 
     def to_dict(self) -> dict:
-        return {"coverage": self.coverage, "flatness": self.flatness,
+        return {"coverage": self.coverage, "thickness_ut": self.thickness_ut,
                 "gravity_spread_deg": None if self.gravity_spread is None else float(np.degrees(self.gravity_spread)),
                 "norm_residual_rms_ut": self.norm_residual_rms_ut, "norm_residual_max_ut": self.norm_residual_max_ut,
                 "reference_norm_ut": self.reference_norm_ut, "warnings": list(self.warnings)}
@@ -71,7 +71,7 @@ def assess(fit: MagFit, mag: np.ndarray, down: np.ndarray | None = None,
     """Quality of ``fit`` on raw samples ``mag`` (N, 3) µT; ``down`` (N, 3) unit down directions if known."""
     h = fit.compensate(mag)
     cov = sphere_coverage(h)
-    flat = flatness(mag)
+    flat = thickness(mag)
     spread = gravity_spread(down) if down is not None else None
     norm_res = np.linalg.norm(h, axis=1) - fit.field_norm_ut
     notes = []
@@ -80,8 +80,8 @@ def assess(fit: MagFit, mag: np.ndarray, down: np.ndarray | None = None,
         notes.append(f"coverage {cov:.0%} of the sphere cannot support an unaided ellipsoid "
                      f"(needs >= {COVERAGE_FOR_ELLIPSOID:.0%}): soft iron and hard iron along the unseen "
                      "directions are poorly determined; use table angles or tilts")
-    if planar and flat >= FLAT_LIMIT:
-        notes.append(f"2D method on data that are not level (flatness {flat:.3f} >= {FLAT_LIMIT}): "
+    if planar and flat >= FLAT_LIMIT_UT:
+        notes.append(f"2D method on data that are not level (cloud {flat:.3g} µT thick >= {FLAT_LIMIT_UT} µT): "
                      "the 2D model does not hold; heading errors will be large")
     if not planar:
         lo, hi = FIELD_RANGE_UT

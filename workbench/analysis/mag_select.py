@@ -2,7 +2,7 @@
 
 Order of preference, each tried only when the data support it:
 
-1. ``2d`` when the raw cloud is flat (a level yaw sweep): 3D parameters are not observable;
+1. ``2d`` when the raw cloud is flat (a level yaw sweep, or less than ~5° of tilt): 3D parameters are not observable;
 2. ``attitude`` when the body-to-reference attitude is known (table angles) and the gravity
    direction takes more than one value in the body (several tilts): vector least squares
    observes everything, including the magnetometer-to-IMU rotation;
@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from workbench.analysis.mag_quality import COVERAGE_FOR_ELLIPSOID, FLAT_LIMIT
+from workbench.analysis.mag_quality import COVERAGE_FOR_ELLIPSOID, FLAT_LIMIT_UT
 
 METHODS = ("auto", "2d", "2d-minmax", "sphere", "ellipsoid", "dip", "attitude", "algebraic")
 MIN_TILT_SPREAD = np.radians(5.0)  # rad, gravity-direction spread that counts as "several tilts"
@@ -32,13 +32,13 @@ class Choice:
     reason: str
 
 
-def choose(flat: float, coverage: float, tilt_spread: float | None, has_attitude: bool) -> Choice:
-    """Pick an estimator from the cloud's flatness, its sphere ``coverage`` (0-1, of the raw
+def choose(thickness_ut: float, coverage: float, tilt_spread: float | None, has_attitude: bool) -> Choice:
+    """Pick an estimator from the cloud's thickness (µT), its sphere ``coverage`` (0-1, of the raw
     directions about the cloud's centre), the gravity-direction spread (rad, None without
     accelerometer) and whether the attitude is known."""
     tilted = tilt_spread is not None and tilt_spread > MIN_TILT_SPREAD
-    if flat < FLAT_LIMIT:
-        return Choice("2d", f"points lie in one plane (flatness {flat:.3f} < {FLAT_LIMIT}): level data, "
+    if thickness_ut < FLAT_LIMIT_UT:
+        return Choice("2d", f"points lie in one plane ({thickness_ut:.3g} µT thick < {FLAT_LIMIT_UT} µT): level data, "
                             "3D hard/soft iron not observable; 2D method (paper 004)")
     if has_attitude and tilted:
         return Choice("attitude", f"table attitude known and {np.degrees(tilt_spread):.0f}° of tilt: vector "

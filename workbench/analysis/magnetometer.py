@@ -162,9 +162,9 @@ def _down(points: MagPoints) -> np.ndarray | None:
 def _fit(method: str, points: MagPoints, down: np.ndarray | None, field_norm_ut, robust: bool,
          notes: tuple[str, ...] = ()) -> MagFit:
     mag = points.mag
-    flat = mag_quality.flatness(mag)
-    if method in ("sphere", "ellipsoid", "algebraic", "dip", "attitude") and flat < mag_quality.FLAT_LIMIT:
-        raise AnalysisError(f"{method} fit: all points lie in one plane (flatness {flat:.3g}): a 3D fit needs "
+    flat = mag_quality.thickness(mag)
+    if method in ("sphere", "ellipsoid", "algebraic", "dip", "attitude") and flat < mag_quality.FLAT_LIMIT_UT:
+        raise AnalysisError(f"{method} fit: all points lie in one plane (cloud {flat:.3g} µT thick): a 3D fit needs "
                             "tilted positions; use method '2d' for level data")
     if method in ("2d", "2d-minmax"):
         dmean = down.mean(axis=0) if down is not None else np.array([0.0, 0.0, 1.0])
@@ -213,7 +213,7 @@ def calibrate(points: MagPoints, method: str = "auto", robust: bool = False, fie
     if accel_model is not None and points.accel is not None:
         points = replace(points, accel=accel_model.compensate(points.accel))
     down = _down(points)
-    flat = mag_quality.flatness(points.mag)
+    flat = mag_quality.thickness(points.mag)
     raw_cov = mag_quality.sphere_coverage(points.mag - points.mag.mean(axis=0))
     spread = mag_quality.gravity_spread(down) if points.accel is not None or points.attitude is not None else None
     if method == "auto":
@@ -221,7 +221,11 @@ def calibrate(points: MagPoints, method: str = "auto", robust: bool = False, fie
     else:
         choice = mag_select.Choice(method, "chosen by the user")
     check_points(points.mag, choice.method, source)
-    fit = _fit(choice.method, points, down, field_norm_ut, robust)
+    notes = ()
+    if choice.method == "dip" and accel_model is None:
+        notes = ("dip fit with the uncalibrated accelerometer: its bias tilts the gravity direction (20 mg ~ 1.1°) "
+                 "and biases the fit; give the accelerometer calibration",)
+    fit = _fit(choice.method, points, down, field_norm_ut, robust, notes)
     quality = mag_quality.assess(fit, points.mag, down, field_norm_ut)
     head = raw_head = base = base_head = None
     if points.attitude is not None:

@@ -693,8 +693,8 @@ def _session_mount(session: Session, obs: Observations, max_tilt: float, axes: S
 def _accel_tilt_warning(session: Session, steps: np.ndarray, geom: AxisGeometry, max_tilt: float) -> list[str]:
     """Warn when the accelerometers show a level gyro axis tilted beyond ``max_tilt`` (rad)."""
     data = _Samples(session)
-    f = np.mean([data.cut(session.step(int(i)), 0.0, static=True)["accel"].mean(axis=0) for i in np.unique(steps)],
-                axis=0)
+    cuts = [data.cut(st, 0.0, static=st.kind == "static") for st in (session.step(int(i)) for i in np.unique(steps))]
+    f = np.mean([c["accel"].mean(axis=0) for c in cuts], axis=0)
     tilt = np.arcsin(np.clip(np.abs(f) / np.linalg.norm(f), 0.0, 1.0))
     bad = [i for i in np.flatnonzero(geom.horizontal) if tilt[i] > max_tilt]
     return [f"{session.name}: accelerometers show body {'xyz'[i]} tilted {np.degrees(tilt[i]):.2f}° from level "

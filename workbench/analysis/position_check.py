@@ -5,8 +5,8 @@ skips: a static step with motion in it, a rate step shorter than one revolution,
 detection of a position that does not fit the model (a mounting or fixture error), by
 externally studentised (leave-one-out) residuals of a weighted least-squares fit.
 
-Public: :class:`StepStats`, :func:`step_stats`, :func:`motion_in_static`,
-:func:`whole_revolutions`, :func:`deleted_residual_statistics`, :func:`step_name`.
+Public: :class:`StepStats`, :func:`step_stats`, :func:`motion_in_static`, :func:`mean_variance`,
+:func:`static_mean_variance`, :func:`whole_revolutions`, :func:`whole_revolution_samples`, :func:`deleted_residual_statistics`, :func:`step_name`.
 
 Noise of a step mean is estimated by batch means (the scatter of the means of ``K`` equal
 blocks divided by sqrt(K)), which also sees the low-frequency noise (bias instability) that
@@ -94,35 +94,44 @@ def _stats(step: StepRecord, df: pd.DataFrame, revolutions: int) -> StepStats:
                      revolutions)
 
 
-def static_mean_variance(session: Session, stats: list[StepStats], triad: str, settle_s: float = 0.0) -> np.ndarray:
-    """Variance (n, 3) of each static step's mean, from a two-term noise model pooled over the steps.
+def mean_variance(signals: list[np.ndarray], fs: float) -> np.ndarray:
+    """Variance (n, 3) of the mean of each signal (N_i, 3), from a two-term noise model pooled over them.
 
-    The Allan variance of each step is taken at ``tau1 = T/20`` and ``tau2 = T/4`` (non-overlapping
-    blocks) and averaged over the steps; ``AVAR(tau) = W / tau + F`` (white noise plus a flat
-    bias-instability floor, IEEE 952) is solved for ``W, F >= 0``. The variance of a mean over
-    ``T_i`` is then ``W / T_i + F``: the white part averages down, the bias wander does not.
+    The Allan variance of each signal is taken at ``tau1 = T/20`` and ``tau2 = T/4`` (``T`` the
+    shortest signal; non-overlapping blocks) and averaged over the signals;
+    ``AVAR(tau) = W / tau + F`` (white noise plus a flat bias-instability floor, IEEE 952) is
+    solved for ``W, F >= 0``. The variance of a mean over ``T_i`` is then ``W / T_i + F``: the
+    white part averages down, the bias wander between steps does not.
     """
-    cols = GYRO if triad == "gyro" else ACCEL
-    fs = session.sample_rate_hz
-    avar = {20: [], 4: []}
-    n_min = min(s.n for s in stats)
-    for s in stats:
-        x = _frame(session, s.step, settle_s)[cols].to_numpy(float)
-        for k in avar:
-            m = n_min // k
-            if m < 1:
-                continue
+    n_min = min(len(x) for x in signals)
+    m1, m2 = n_min // 20, n_min // 4
+    if m1 < 1:
+        raise AnalysisError(f"steps of {n_min} samples are too short to estimate their noise")
+    avar = []
+    for m in (m1, m2):
+        vals, dof = [], 0
+        for x in signals:
             blocks = x[: (len(x) // m) * m].reshape(-1, m, 3).mean(axis=1)
-            avar[k].append(0.5 * np.mean(np.diff(blocks, axis=0) ** 2, axis=0))
-    taus = np.array([n_min // 20, n_min // 4]) / fs
-    if taus[0] <= 0 or not avar[20] or not avar[4]:
-        return np.array([s.accel_var if triad == "accel" else s.gyro_var for s in stats])
-    a1, a2 = np.mean(avar[20], axis=0), np.mean(avar[4], axis=0)
-    w = np.maximum((a1 - a2) / (1 / taus[0] - 1 / taus[1]), 0.0)
-    f = np.maximum(a2 - w / taus[1], 0.0)
-    w = np.where(f == 0, a1 * taus[0], w)  # white only: take the better-estimated short tau
-    t = np.array([s.n / fs for s in stats])
+            vals.append(0.5 * np.mean(np.diff(blocks, axis=0) ** 2, axis=0))
+            dof += len(blocks) - 1
+        avar.append(np.mean(vals, axis=0))
+    tau1, tau2 = m1 / fs, m2 / fs
+    a1, a2 = avar
+    w = np.maximum((a1 - a2) / (1 / tau1 - 1 / tau2), 0.0)
+    f = np.maximum(a2 - w / tau2, 0.0)
+    # keep the floor only where it stands out of the scatter of AVAR(tau2) (2 sigma, chi2 with
+    # `dof` degrees of freedom); otherwise the noise is white and the short tau estimates it best
+    f = np.where(f > 2 * a2 * np.sqrt(2.0 / max(dof, 1)), f, 0.0)
+    w = np.where(f == 0, a1 * tau1, w)
+    t = np.array([len(x) / fs for x in signals])
     return w[None, :] / t[:, None] + f[None, :]
+
+
+def static_mean_variance(session: Session, stats: list[StepStats], triad: str, settle_s: float = 0.0) -> np.ndarray:
+    """:func:`mean_variance` of the ``triad`` ("gyro" or "accel") samples of static steps."""
+    cols = GYRO if triad == "gyro" else ACCEL
+    return mean_variance([_frame(session, s.step, settle_s)[cols].to_numpy(float) for s in stats],
+                         session.sample_rate_hz)
 
 
 def motion_in_static(session: Session, step: StepRecord, settle_s: float = 0.0) -> str | None:
@@ -162,7 +171,13 @@ def motion_in_static(session: Session, step: StepRecord, settle_s: float = 0.0) 
 
 
 def whole_revolutions(session: Session, step: StepRecord) -> StepStats:
-    """Statistics of a rate step over its whole revolutions, from the step's first sample.
+    """Statistics of a rate step over its whole revolutions (see :func:`whole_revolution_samples`)."""
+    df, revs = whole_revolution_samples(session, step)
+    return _stats(step, df, revs)
+
+
+def whole_revolution_samples(session: Session, step: StepRecord) -> tuple[pd.DataFrame, int]:
+    """Samples of a rate step over its whole revolutions from its first sample, and their number.
 
     The turned angle comes from the ``table_angle`` column (unwrapped) when present, else
     from the encoder rate (``table_rate``) or the commanded rate times time. Raises
@@ -184,7 +199,7 @@ def whole_revolutions(session: Session, step: StepRecord) -> StepStats:
         raise AnalysisError(f"{session.name}: {step_name(step)}: turns {np.degrees(turned[-1]):.1f}° "
                             f"in {t[-1] - t[0] + dt:.3g} s, less than one revolution")
     keep = turned <= revs * 2 * np.pi * (1 + 1e-9) + 0.5 * np.abs(np.gradient(turned)).mean()
-    return _stats(step, df[keep], revs)
+    return df[keep], revs
 
 
 def deleted_residual_statistics(designs: list[np.ndarray], y: np.ndarray, var: np.ndarray,

@@ -363,6 +363,10 @@ def fit_thermal_poly(temperature_c, values, sigma=None, direction=None, groups=N
 class SoakPoint:
     """Estimates of one triad at one soak (SI; ``scale`` = diag of M, NaN where not observed).
 
+    ``temperature_c`` is the mean unit temperature over the measurement steps and
+    ``rate_c_per_min`` its slope there; ``settle_time_s`` the time the soak step took to settle
+    (None when it never did); ``settled`` = ``|rate_c_per_min|`` below the tolerance.
+
     ``direction`` +1 when the unit approached this temperature from below (up branch),
     -1 from above (down branch), 0 when it did not move (first soak at ambient).
     """
@@ -372,7 +376,8 @@ class SoakPoint:
     steps: tuple[int, ...]
     setpoint_c: float | None
     temperature_c: float
-    temperature_drift_c: float
+    rate_c_per_min: float
+    settle_time_s: float | None
     direction: int
     bias: np.ndarray
     bias_sigma: np.ndarray
@@ -436,10 +441,10 @@ def soak_points(session, triads=("gyro", "accel"), settle_tol_c_per_min: float =
     For each soak group the accelerometer is fitted with ``fit_accel`` on the group's static
     steps; the gyro bias with ``fit_gyro_static`` on the same steps and, when the group has
     rate steps, the gyro scale factor with ``fit_gyro_rate`` (else not observed, NaN). The soak's temperature is the mean
-    unit temperature over its measurement steps; a soak whose unit temperature has not
-    settled (slope over the last window of the soak step at or above ``settle_tol_c_per_min``,
-    or a drift over the measurement steps larger than ``settle_tol_c_per_min`` times their
-    duration) is reported in the warnings and flagged ``settled=False``.
+    unit temperature over its measurement steps; a soak whose unit temperature still moves
+    during the measurement steps (regression slope at or above ``settle_tol_c_per_min``) is
+    reported in the warnings naming the step and flagged ``settled=False`` (left out of the
+    fits); the soak step's own settling time (:func:`settling`) is kept for the report.
     Returns ({triad: [SoakPoint]}, warnings).
     """
     tt = _turntable()
@@ -458,14 +463,17 @@ def soak_points(session, triads=("gyro", "accel"), settle_tol_c_per_min: float =
         ts, temps = t_all[soak_sel], temp_all[soak_sel]
         tm, tempm = t_all[meas_sel], temp_all[meas_sel]
         st = settling(ts, temps, settle_tol_c_per_min, settle_window_s) if len(ts) > 2 else None
-        drift = float(np.polyfit(tm - tm[0], tempm, 1)[0] * (tm[-1] - tm[0])) if len(tm) > 2 else 0.0
-        duration_min = (tm[-1] - tm[0]) / 60.0 if len(tm) > 1 else 0.0
-        settled = (st is None or st.settled) and abs(drift) <= max(settle_tol_c_per_min * duration_min, 0.05)
+        settle_time = None if st is None or not st.settled else st.t_settled - ts[0]
+        if len(tm) > 2 and tm[-1] - tm[0] >= 10.0:
+            rate = float(np.polyfit(tm - tm[0], tempm, 1)[0] * 60.0)
+        else:  # measurement too short to tell: the soak's own final slope
+            rate = st.final_rate_c_per_min if st is not None else 0.0
+        settled = abs(rate) < settle_tol_c_per_min
         if not settled:
-            rate = st.final_rate_c_per_min if st is not None else float("nan")
-            warnings.append(f"step {g.soak_step} (soak {g.setpoint_c} °C): unit temperature did not settle "
-                            f"(last slope {rate:.3g} °C/min, drift {drift:.3g} °C over measurement steps "
-                            f"{g.steps[0]}-{g.steps[-1]}, tolerance {settle_tol_c_per_min} °C/min)")
+            how = "never settled" if settle_time is None else f"settled after {settle_time:.0f} s"
+            warnings.append(f"step {g.soak_step} (soak {g.setpoint_c} °C): unit temperature did not settle: "
+                            f"{rate:.3g} °C/min over measurement steps {g.steps[0]}-{g.steps[-1]} (tolerance "
+                            f"{settle_tol_c_per_min} °C/min; soak step {how}); soak left out of the fit")
         mean_t = float(tempm.mean())
         start_t = float(temps[0]) if len(temps) else mean_t
         ref = prev_temp if prev_temp is not None else start_t
@@ -488,7 +496,8 @@ def soak_points(session, triads=("gyro", "accel"), settle_tol_c_per_min: float =
                 scale = np.full(3, np.nan) if rfit is None else np.diag(rfit.scale_misalignment)
                 scale_s = np.full(3, np.nan) if rfit is None else np.diag(rfit.scale_misalignment_sigma)
             warnings += [f"soak step {g.soak_step}: {w}" for w in fit.warnings]
-            out[triad].append(SoakPoint(triad, g.soak_step, g.steps, g.setpoint_c, mean_t, drift, direction,
+            out[triad].append(SoakPoint(triad, g.soak_step, g.steps, g.setpoint_c, mean_t, rate, settle_time,
+                                        direction,
                                         np.asarray(bias, float), np.asarray(bias_s, float),
                                         np.asarray(scale, float).copy(), np.asarray(scale_s, float).copy(), settled))
     # the first soak (usually at ambient) takes the direction of the next one's approach
@@ -631,7 +640,8 @@ class ThermalResult:
             "source": self.source, "t_ref_c": self.t_ref_c, "t_min_c": self.t_min_c, "t_max_c": self.t_max_c,
             "fits": {q: f.to_dict() for q, f in self.fits.items()},
             "soaks": {tr: [{"soak_step": p.soak_step, "steps": list(p.steps), "setpoint_c": p.setpoint_c,
-                            "temperature_c": p.temperature_c, "drift_c": p.temperature_drift_c,
+                            "temperature_c": p.temperature_c, "rate_c_per_min": p.rate_c_per_min,
+                            "settle_time_s": p.settle_time_s,
                             "direction": p.direction, "settled": p.settled, "bias": p.bias.tolist(),
                             "bias_sigma": _nan_none(p.bias_sigma), "scale": _nan_none(p.scale),
                             "scale_sigma": _nan_none(p.scale_sigma)} for p in pts]
@@ -642,7 +652,10 @@ class ThermalResult:
 
 def fit_soaks(points: dict[str, list[SoakPoint]], t_ref_c: float = 25.0, max_order: int = MAX_ORDER,
               order: int | None = None, hysteresis: str = "auto", include_unsettled: bool = False) -> dict[str, PolyFit]:
-    """Polynomial fits of bias and (where observed) scale factor over the soak points."""
+    """Polynomial fits of bias and (where observed) scale factor over the settled soak points.
+
+    Weights are ``1 / sigma^2`` with each soak's sigma floored at the axis median.
+    """
     fits: dict[str, PolyFit] = {}
     for triad, pts in points.items():
         pts = [p for p in pts if p.settled or include_unsettled]
@@ -661,6 +674,9 @@ def fit_soaks(points: dict[str, list[SoakPoint]], t_ref_c: float = 25.0, max_ord
             sig = np.array([getattr(p, what + "_sigma") for p in pts])
             if not np.isfinite(sig).any():
                 continue
+            # a soak's sigma comes from a handful of positions (few degrees of freedom): raise
+            # any below the axis median to it, so no soak dominates the fit by a lucky sigma
+            sig = np.maximum(sig, np.nanmedian(sig, axis=0))
             fits[f"{triad}.{what}"] = fit_thermal_poly(tc, vals, sig, d, grp, t_ref_c, max_order, order,
                                                        f"{triad}.{what}", hysteresis)
     return fits

@@ -40,8 +40,8 @@ from scipy.optimize import brentq
 from scipy.stats import chi2 as chi2_dist
 
 from workbench.analysis.position_check import (
-    StepStats, deleted_residual_statistics, motion_in_static, static_mean_variance, step_name, step_stats,
-    whole_revolutions,
+    StepStats, deleted_residual_statistics, mean_variance, motion_in_static, static_mean_variance, step_name,
+    step_stats, whole_revolution_samples, whole_revolutions,
 )
 from workbench.calset import TriadCalibration
 from workbench.earth import EARTH_RATE, earth_rate_ned
@@ -541,7 +541,7 @@ def fit_gyro_rate(session: Session, steps: Sequence[int] | None = None,
     w = np.array([rate_reference(session, s) for s in stats])
     w_nominal = np.array([np.asarray(s.step.mount).T @ np.array([0.0, 0.0, s.step.table_rate]) for s in stats])
     y = np.array([s.gyro for s in stats])
-    var = np.array([s.gyro_var for s in stats])
+    var = mean_variance([_rate_error_signal(session, s.step) for s in stats], session.sample_rate_hz)
     mounts = list(dict.fromkeys(_mount_key(s.step.mount) for s in stats))
     onehot = np.array([[float(_mount_key(s.step.mount) == m) for m in mounts] for s in stats])
 
@@ -607,6 +607,25 @@ def fit_gyro_rate(session: Session, steps: Sequence[int] | None = None,
     return _replace_fit(result, residuals=_residual_frame(stats, w, y, comp, position_var(tilt) * fit.scale, used),
                         outliers=tuple(stats[i].step.index for i in outliers), warnings=tuple(warnings),
                         chi2_reduced=fit.chi2 / fit.dof if fit.dof else float("nan"), dof=fit.dof, notes=notes)
+
+
+def _rate_error_signal(session: Session, step: StepRecord) -> np.ndarray:
+    """Gyro minus the true rate (N, 3), rad/s, over a rate step's whole revolutions (for its noise).
+
+    True rate: encoder rate about the table axis plus the Earth rate (the horizontal part
+    rotating with the table when the azimuth is known; else only its vertical part).
+    """
+    df, _ = whole_revolution_samples(session, step)
+    mount = np.asarray(step.mount)
+    rate = df["table_rate"].to_numpy(float) if "table_rate" in df.columns else np.full(len(df), step.table_rate)
+    w = rate[:, None] * mount.T[:, 2][None, :]
+    w_ie = earth_rate_ned(session.site.latitude)
+    if session.site.table_zero_azimuth is not None and "table_angle" in df.columns:
+        angle = df["table_angle"].to_numpy(float)
+        w = w + session.attitude(step, angle[:, None]).inv().apply(w_ie)
+    else:
+        w = w + w_ie[2] * mount.T[:, 2][None, :]
+    return df[["gx", "gy", "gz"]].to_numpy(float) - w
 
 
 def _offsets(fit: _AxisFit, n_mounts: int) -> tuple[np.ndarray, list[np.ndarray]]:

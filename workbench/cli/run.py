@@ -211,9 +211,9 @@ def import_cmd(profile: Path = typer.Argument(..., help="Import profile (YAML)."
 
 def list_procedures() -> None:
     """List the procedures and their default options."""
-    t = Table("procedure", "title", "triads", "campaign", "defaults")
+    t = Table("procedure", "title", "triads", "campaign", "options")
     for name, p in sorted(procedures().items()):
-        t.add_row(name, p.TITLE, ", ".join(p.TRIADS), str(p.CAMPAIGN_ORDER or "—"), json.dumps(p.DEFAULTS))
+        t.add_row(name, p.TITLE, ", ".join(p.TRIADS), str(p.CAMPAIGN_ORDER or "—"), ", ".join(p.DEFAULTS))
     out.print(t)
 
 

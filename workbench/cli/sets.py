@@ -167,3 +167,24 @@ def merge_cmd(refs: list[str] = typer.Argument(..., help="Partial sets of one un
 
 def register(app: typer.Typer) -> None:
     app.add_typer(sets_app, name="sets")
+
+
+@sets_app.command("stats")
+def stats(grade: str = typer.Option(..., "--grade", help="Unit model (grade name) to summarise."),
+          outliers_only: bool = typer.Option(False, "--outliers", help="Only coefficients with outliers.")) -> None:
+    """Distribution of each coefficient across the units of a grade (latest set per unit), outliers flagged."""
+    from workbench.fleet.stats import OUTLIER_Z, coefficient_stats
+
+    store = Store()
+    serials = [s for s, model in store.units() if model == grade]
+    sets = [c for c in (store.latest(s) for s in serials) if c is not None]
+    rows = coefficient_stats(sets)
+    t = Table("triad", "field", "index", "n", "mean", "std", "median", "robust std", f"outliers (|z| > {OUTLIER_Z})",
+              title=f"{grade}: {len(sets)} units")
+    for r in rows:
+        if outliers_only and not r.outliers:
+            continue
+        t.add_row(r.triad, r.field, str(r.index), str(r.n), f"{r.mean:.4g}", f"{r.std:.3g}", f"{r.median:.4g}",
+                  f"{r.robust_std:.3g}", ", ".join(f"{s} (z={z:+.1f})" for s, _, z in r.outliers),
+                  style="bold red" if r.outliers else "")
+    out.print(t)

@@ -100,8 +100,7 @@ def initial_attitude(samples: ImuSamples, declination: float, n: int) -> np.ndar
 
 def _measure(att: np.ndarray, accel: np.ndarray, mag: np.ndarray, declination: float):
     """Tilt and heading innovations (3,) ~ (dtheta_N, dtheta_E, -dtheta_D) and |f|, |m_h|."""
-    f = np.einsum("nij,nj->i", att, accel) / len(accel)
-    m = np.einsum("nij,nj->i", att, mag) / len(mag)
+    f, m = np.einsum("nij,knj->ki", att, np.stack([accel, mag])) / len(accel)
     fn = np.linalg.norm(f)
     mh = np.hypot(m[0], m[1])
     psi = np.arctan2(m[1], m[0]) - declination
@@ -125,20 +124,20 @@ def _run(samples: ImuSamples, latitude: float, config: AhrsConfig, correct, name
     prop = BlockPropagator(n_blk, samples.dt, w_ie)
     c = initial_attitude(samples, config.declination, n_init)
     bg = np.zeros(3)
-    out_t, out_c, out_b, out_s = [], [], [], []
+    dtheta = np.zeros(3)
+    out_t, out_c, out_d, out_b, out_s = [], [], [], [], []
     for i0 in range(0, len(samples) - n_blk + 1, n_blk):
-        gyro = samples.gyro[i0:i0 + n_blk]
-        att = prop.propagate(c, gyro - bg)
+        att = prop.propagate(c, samples.gyro[i0:i0 + n_blk] - bg, dtheta)
         z, fn, mh = _measure(att, samples.accel[i0:i0 + n_blk], samples.mag[i0:i0 + n_blk], config.declination)
-        c_mean = att.mean(axis=0)
-        dtheta, dbg, sig = correct(z, c_mean, att[-1], fn, mh)
-        c = Rotation.from_rotvec(dtheta).as_matrix() @ att[-1]
+        dtheta, dbg, sig = correct(z, att.mean(axis=0), fn, mh)
+        c = att[-1]  # dtheta is applied at the start of the next block
         bg = bg + dbg
         out_t.append(samples.t[i0 + n_blk - 1])
         out_c.append(c)
+        out_d.append(dtheta)
         out_b.append(bg.copy())
         out_s.append(sig)
-    attitude = Rotation.from_matrix(np.array(out_c))
+    attitude = Rotation.from_rotvec(np.array(out_d)) * Rotation.from_matrix(np.array(out_c))
     sig = np.array(out_s)
     return AhrsResult(np.array(out_t), attitude, euler_rph(attitude), sig[:, :3], np.array(out_b), sig[:, 3:], name)
 
@@ -155,7 +154,7 @@ def complementary(samples: ImuSamples, latitude: float, config: AhrsConfig = Ahr
     kp, ki = 2.0 / tau, 1.0 / tau ** 2
     nan6 = np.full(6, np.nan)
 
-    def correct(z, c_mean, c_end, fn, mh):
+    def correct(z, c_mean, fn, mh):
         e = np.array([z[0], z[1], -z[2]])
         return kp * T * e, -T * c_mean.T @ (ki * e), nan6
 
@@ -184,12 +183,12 @@ def kalman(samples: ImuSamples, noise: ProcessNoise, latitude: float, config: Ah
     phi = np.eye(6)
     phi[:3, :3] -= np.array([[0.0, -w_ie[2], w_ie[1]], [w_ie[2], 0.0, -w_ie[0]], [-w_ie[1], w_ie[0], 0.0]]) * T
     state = {"P": np.diag([1e-4, 1e-4, 1e-2, *np.full(3, config.gyro_bias_prior ** 2)])}
+    qd = np.zeros((6, 6))
+    qd[3:, 3:] = q_b
 
-    def correct(z, c_mean, c_end, fn, mh):
+    def correct(z, c_mean, fn, mh):
         phi[:3, 3:] = -c_mean * T
-        qd = np.zeros((6, 6))
         qd[:3, :3] = c_mean @ q_att @ c_mean.T
-        qd[3:, 3:] = q_b
         P = phi @ state["P"] @ phi.T + qd
         r_tilt = (vrw / fn) ** 2 / T + config.tilt_noise_floor ** 2
         r_head = sig_m ** 2 / (mh ** 2 * n_blk) + config.heading_noise_floor ** 2

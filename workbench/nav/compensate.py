@@ -90,13 +90,17 @@ def imu_samples(df: pd.DataFrame, sample_rate_hz: float, source: str = "samples"
     return ImuSamples(t, arrays["gyro"], arrays["accel"], arrays["mag"], temp, dt_nom, (), source)
 
 
-def check_calibration(calibration: CalibrationSet, unit_serial: str, triads: tuple[str, ...],
-                      force: bool = False) -> list[str]:
+def check_calibration(calibration: CalibrationSet | None, unit_serial: str, triads: tuple[str, ...],
+                      force: bool = False, procedure: str = "this procedure") -> list[str]:
     """Check that ``calibration`` fits a unit and a filter; returns warnings.
 
-    Raises AnalysisError when the set belongs to another unit serial (unless ``force``, which
-    turns it into a warning) or lacks one of ``triads``.
+    Raises AnalysisError when there is no set (the message says to pass ``--calibration SET``),
+    when the set belongs to another unit serial (unless ``force``, which turns it into a
+    warning) or when it lacks one of ``triads``.
     """
+    if calibration is None:
+        raise AnalysisError(f"{procedure} compares raw and calibrated runs: pass --calibration SET "
+                            "(a calibration set of the unit, from the store or a JSON file)")
     warnings: list[str] = []
     if calibration.unit.serial != unit_serial:
         msg = (f"calibration set {calibration.id} is for unit {calibration.unit.serial!r}, "

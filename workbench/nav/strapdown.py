@@ -45,13 +45,20 @@ class BlockPropagator:
         self.n, self.dt = n, dt
         self.earth = Rotation.from_rotvec(-np.outer(np.arange(1, n + 1) * dt, earth_rate_ned)).as_matrix()
 
-    def propagate(self, c0: np.ndarray, omega_b: np.ndarray) -> np.ndarray:
+    def propagate(self, c0: np.ndarray, omega_b: np.ndarray, correction_ned: np.ndarray | None = None) -> np.ndarray:
         """DCMs (n, 3, 3) after each sample, from ``c0`` (3, 3) at the block start.
 
         ``omega_b`` (n, 3) rad/s: bias-corrected body rates w.r.t. inertial space, each constant
         over its sample interval; the last matrix is the attitude at the block end.
+        ``correction_ned`` (3,) rad, optional: a filter correction applied first, as
+        ``Exp(correction) c0`` (folded into the same scipy call as the gyro increments).
         """
-        inc = _prefix_product(Rotation.from_rotvec(np.asarray(omega_b) * self.dt).as_matrix())
+        rotvec = np.asarray(omega_b) * self.dt
+        if correction_ned is not None:
+            rotvec = np.vstack([c0.T @ correction_ned, rotvec])  # Exp(e) c0 = c0 Exp(c0^T e)
+        inc = _prefix_product(Rotation.from_rotvec(rotvec).as_matrix())
+        if correction_ned is not None:
+            inc = inc[1:]
         return self.earth[: len(omega_b)] @ (c0 @ inc)
 
 
@@ -127,9 +134,14 @@ def sequential_update(P: np.ndarray, H: np.ndarray, z: np.ndarray, r: np.ndarray
     Returns the posterior covariance, the error-state estimate (n,) and the weights (m,).
     """
     n = P.shape[0]
+    eye = np.eye(n)
+    if scaling is None:  # no per-measurement weights: one batch update gives the same result
+        gain = np.linalg.solve(H @ P @ H.T + np.diag(r), H @ P).T
+        ikh = eye - gain @ H
+        P = ikh @ P @ ikh.T + (gain * r) @ gain.T
+        return 0.5 * (P + P.T), gain @ z, np.ones(len(z))
     dx = np.zeros(n)
     weights = np.ones(len(z))
-    eye = np.eye(n)
     for i in range(len(z)):
         h = H[i]
         ph = P @ h

@@ -21,10 +21,17 @@ F and G are eq. 3.29-3.30 with these signs; the covariance is propagated over ea
 with the exact (Van Loan) discretisation of F and G Q G^T rather than eq. 3.49's first order,
 because the interval is 1 s, not one sample.
 
-Two refinements over the thesis, both for honest uncertainties:
-- the levelled attitude holds the horizontal accelerometer bias (tilt error = bias / g); the
-  attitude pseudo-measurement models that dependency (``z = dtheta + S db_a``) so the tilt
-  and horizontal accel-bias uncertainties stay at their (unobservable) prior, as physics says;
+Refinements over the thesis, for honest uncertainties:
+- the levelled attitude holds the horizontal accelerometer bias (tilt error = bias / g). The
+  default measurement set holds the *heading* at the frozen value and leaves the tilt to the
+  zero-velocity update, which observes the same tilt / accel-bias combination without tying
+  it to the bias at levelling time; the initial covariance carries the levelling correlation
+  ``dtheta0 = -S b_a``. The thesis' full attitude hold (``measurements`` with ``attitude``)
+  is available and models that dependency (``z = dtheta + S db_a``); it is consistent only
+  while the accelerometer bias does not wander during the alignment (with a bias random walk
+  its innovations grow and the gain scaling ends up rejecting measurements);
+- the Jacobians are evaluated at the frozen solution (first-estimates Jacobians): evaluated at
+  the corrected attitude they leak spurious information into the unobservable direction;
 - the external heading's own uncertainty cannot be reduced by the filter and is added to the
   reported heading sigma.
 
@@ -61,16 +68,17 @@ class ZuptConfig:
     ``measurements`` any of ``position``, ``velocity``, ``attitude`` (all three angles held at
     the frozen solution, eq. 3.57), ``heading`` (heading only), ``zarupt`` (paper 001 eq. 35-40);
     ``zarupt_window_s`` the moving-average length of eq. 40; ``gain_scaling`` with ``c0``, ``c1``
-    (eq. 46-47, paper: c1 = 6 c0 = 6); pseudo-measurement 1-sigma noises; bias priors (1-sigma,
+    (eq. 46-47; the paper's c1 = 6, but c0 = 3 rather than its 1: with c0 = 1 a third of
+    consistent innovations lose gain and the bias estimates lag); pseudo-measurement 1-sigma noises; bias priors (1-sigma,
     per axis or scalar); ``heading_sigma`` the external heading's 1-sigma, rad.
     """
 
     level_s: float = 5.0
     update_interval_s: float = 1.0
-    measurements: tuple[str, ...] = ("position", "velocity", "attitude")
+    measurements: tuple[str, ...] = ("position", "velocity", "heading")
     zarupt_window_s: float = 1.0
     gain_scaling: bool = True
-    c0: float = 1.0
+    c0: float = 3.0
     c1: float = 6.0
     position_sigma_m: float = 1e-3
     velocity_sigma_mps: float = 1e-3
@@ -98,7 +106,7 @@ class ZuptResult:
     ``accel_bias`` / ``gyro_bias`` (E, 3) body-frame estimates with ``*_sigma`` 1-sigma;
     ``drift_velocity`` (E,) m/s and ``drift_attitude`` (E,) rad: how far the free mechanisation
     moved from the frozen solution over the interval before each correction; ``weights``
-    (E, m) the gain scale factors of eq. 47; ``attitude`` the final body-to-NED Rotation;
+    (E, m) the gain scale factors of eq. 47; ``attitude`` the body-to-NED Rotation (E,);
     ``initial_rph`` the frozen roll, pitch, heading; ``t_start`` the EKF start time, s.
     """
 
@@ -276,6 +284,7 @@ def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: fl
         hist["da"].append(drift_a)
         hist["w"].append(weights)
     arr = {k: np.array(v) for k, v in hist.items() if k != "w"}
-    return ZuptResult(arr["t"], euler_rph(Rotation.from_matrix(arr["c"])), arr["rph_sig"], arr["pos"], arr["vel"], arr["ba"], arr["bas"],
-                      arr["bg"], arr["bgs"], arr["dv"], arr["da"], np.array(hist["w"]), Rotation.from_matrix(c),
+    att = Rotation.from_matrix(arr["c"])
+    return ZuptResult(arr["t"], euler_rph(att), arr["rph_sig"], arr["pos"], arr["vel"], arr["ba"], arr["bas"],
+                      arr["bg"], arr["bgs"], arr["dv"], arr["da"], np.array(hist["w"]), att,
                       np.array([roll0, pitch0, heading]), float(samples.t[n_level]), tuple(use))

@@ -72,10 +72,11 @@ def plot_rate_tracking(fit: TriadFit, full_scale: float):
     """Compensated gyro rate vs table (encoder) rate per rate step, and the residual in % FS."""
     axis, rate, before, after = _rate_rows(fit)
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(8, 6.5), sharex=True)
-    for k, a in enumerate(_XYZ):
+    for k, (a, mk) in enumerate(zip(_XYZ, "os^")):
         sel = axis == k
-        ax1.plot(to_unit(rate[sel], "deg/s"), to_unit(rate[sel] + after[sel], "deg/s"), "o", ms=4, label=f"gyro {a}")
-        ax2.plot(to_unit(rate[sel], "deg/s"), after[sel] / full_scale * 100, "o", ms=4, label=f"{a} after")
+        ax1.plot(to_unit(rate[sel], "deg/s"), to_unit(rate[sel] + after[sel], "deg/s"), mk, ms=7 - 2 * k,
+                 label=f"gyro {a}")
+        ax2.plot(to_unit(rate[sel], "deg/s"), after[sel] / full_scale * 100, mk, ms=4, label=f"{a} after")
         ax2.plot(to_unit(rate[sel], "deg/s"), before[sel] / full_scale * 100, "x", ms=4, alpha=0.5,
                  label=f"{a} before (incl. bias)")
     lim = to_unit(np.abs(rate).max(), "deg/s") * 1.05
@@ -99,17 +100,19 @@ def plot_scale_factor_vs_rate(fit: TriadFit):
     offsets = np.asarray(fit.notes.get("step_offsets", np.zeros((len(rate), 3))))
     idx = np.arange(len(rate))
     raw_sf = (before - offsets[idx, axis]) / rate
-    fig, ax = plt.subplots(figsize=(8, 4.5))
-    for k, a in enumerate(_XYZ):
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(8, 6.5), sharex=True)
+    for k, (a, mk) in enumerate(zip(_XYZ, "os^")):
         sel = axis == k
-        ax.plot(to_unit(rate[sel], "deg/s"), raw_sf[sel] * 1e6, "x", ms=5, label=f"{a} raw (offset removed)")
-        ax.plot(to_unit(rate[sel], "deg/s"), after[sel] / rate[sel] * 1e6, "o", ms=4, label=f"{a} after")
-    ax.axhline(0, color="k", lw=0.6)
-    ax.set_xlabel("table rate about the axis [°/s]")
-    ax.set_ylabel("scale-factor error [ppm]")
-    ax.set_title("scale-factor error vs rate (CW < 0 < CCW)")
-    ax.legend(fontsize=7, ncol=3)
-    ax.grid(alpha=0.3)
+        ax1.plot(to_unit(rate[sel], "deg/s"), raw_sf[sel] * 1e6, mk, ms=5, label=f"gyro {a}")
+        ax2.plot(to_unit(rate[sel], "deg/s"), after[sel] / rate[sel] * 1e6, mk, ms=5, label=f"gyro {a}")
+    ax1.set_title("scale-factor error vs rate about the axis")
+    ax1.set_ylabel("raw, offset removed [ppm]")
+    ax2.set_ylabel("after compensation [ppm]")
+    ax2.set_xlabel("rate about the axis [°/s]")
+    for ax in (ax1, ax2):
+        ax.axhline(0, color="k", lw=0.6)
+        ax.legend(fontsize=8, ncol=3)
+        ax.grid(alpha=0.3)
     fig.tight_layout()
     return fig
 

@@ -67,7 +67,7 @@ def cascade_avar(sos: np.ndarray, dt: float, taus: np.ndarray) -> np.ndarray:
     taus = np.asarray(taus, float)
     f_pole = -np.log(np.clip(-sos[:, 4], 1e-300, None)).min() / (2 * np.pi * dt)  # lowest corner, Hz
     f_min = 1e-3 * min(f_pole, 1.0 / taus.max())
-    f = np.logspace(np.log10(f_min), np.log10(0.5 / dt), 40000)
+    f = np.logspace(np.log10(f_min), np.log10(0.5 / dt), 20000)
     e = np.exp(-2j * np.pi * f * dt)
     h2 = np.ones(f.size)
     for b0, b1, _, _, a1, _ in sos:

@@ -41,6 +41,8 @@ class RigState:
     unit_c: float = 23.0
     chamber_target_c: float = 23.0
     chamber_rate_c_per_min: float = 5.0
+    imu: dict | None = None  # VirtualIMU noise state, so a resumed run continues the same noise
+    rng: dict | None = None  # fixture-error generator state
 
     def to_dict(self) -> dict:
         return dict(self.__dict__)
@@ -66,6 +68,10 @@ class SimRig:
         self.state = state or RigState(air_c=c0, unit_c=c0, chamber_target_c=c0,
                                        chamber_rate_c_per_min=config.chamber.max_ramp_c_per_min,
                                        mount=np.eye(3).tolist())
+        if self.state.imu is not None:
+            self.imu.restore(self.state.imu)
+        if self.state.rng is not None:
+            self.rng.bit_generator.state = self.state.rng
         lat = self.site.latitude
         self._g = float(normal_gravity(lat, self.site.height_m))
         self._wie = earth_rate_ned(lat)
@@ -113,6 +119,7 @@ class SimRig:
             rate = planned.table_rate if planned.kind in ("rate", "carousel") else 0.0
             parts.append(self._segment(n, index, planned.mount, rate_profile=np.full(n, rate), error=error))
         samples = pd.concat(parts, ignore_index=True)
+        st.imu, st.rng = self.imu.state(), self.rng.bit_generator.state
         t_end = st.sample / self.fs
         record = StepRecord(index, planned.kind, t_start, t_end - 0.5 / self.fs, np.asarray(planned.mount),
                             float(start_angle), float(planned.table_rate), planned.temperature_c, planned.label,

@@ -1,0 +1,81 @@
+"""North-finding: run a maytagging / Earth-rate / redundant / carousel sequence, see the azimuth.
+
+Library calls only: the run is ``workbench run`` (``common.start_run``), the analysis the
+procedure's ``analyze`` (``common.result_picker``), the figures its ``figures``; several
+sessions are compared with ``northfinding.sequence_table`` / ``pairing_table`` (thesis tables
+4.3, 4.4). Numbers in lab units (°, mrad, °/h), achieved beside theoretical.
+"""
+
+import numpy as np
+import pandas as pd
+import streamlit as st
+
+from dashboard import common
+
+TITLE = "North-finding"
+PROCEDURES = {"maytagging": "Maytagging (±180°, thesis seq. 1-7)", "earth-rate": "Earth-rate sweep (seq. 0)",
+              "redundant": "Redundant configuration (45° steps, seq. 8-12)", "carousel": "Carousel (continuous)"}
+
+
+def numbers(result) -> pd.DataFrame:
+    """Achieved and theoretical figures of one result (lab units)."""
+    r, th = result.result, result.result["theory"]
+    rows = [("azimuth of body x at table zero", f"{r['azimuth_deg']:.4f} °", f"± {r['azimuth_sigma_mrad']:.3g} mrad (1σ)"),
+            (f"per-{r['units']} std", f"{r['pair_std_mrad']:.3g} mrad" if r["pair_std_mrad"] is not None else "—",
+             f"theory: ARW {th['arw_pair_sigma_mrad'] or float('nan'):.3g} mrad, "
+             f"Allan {th['allan_pair_sigma_mrad'] or float('nan'):.3g} mrad ({th['source']})"),
+            ("horizontal Earth rate", common.lab(r["earth_rate_amplitude"] if r["earth_rate_amplitude"] is not None
+                                                 else np.nan, "deg/h", r["earth_rate_amplitude_sigma"]),
+             f"Ω_e cos(lat) = {common.lab(r['earth_rate_expected'], 'deg/h')}")]
+    for axis, b, s in zip("xyz", r["gyro_bias"], r["gyro_bias_sigma"]):
+        rows.append((f"gyro bias {axis}", common.lab(np.nan if b is None else b, "deg/h",
+                                                     None if s is None else s), ""))
+    if "azimuth_error_mrad" in r:
+        rows.append(("error against the table's known zero", f"{r['azimuth_error_mrad']:+.3g} mrad", ""))
+    return pd.DataFrame(rows, columns=["quantity", "achieved", "reference"])
+
+
+st.title("North-finding")
+name = st.selectbox("Procedure", list(PROCEDURES), format_func=PROCEDURES.get, key="nf.proc")
+tab_run, tab_result, tab_compare = st.tabs(["Run", "Result", "Compare sessions"])
+
+with tab_run:
+    grade = common.grade_picker(key="nf.grade")
+    with common.guarded("north-finding run"):
+        from workbench import registry
+
+        proc = registry.procedure(name)
+        options = common.option_inputs(proc, key="nf.run")
+        if grade is not None:
+            spec = common.load_spec(grade)
+            if hasattr(proc, "applies") and not proc.applies(spec):
+                st.warning(f"{spec.name}: the gyros do not resolve the Earth rate (pair 1σ > 0.1 rad)")
+            seq = common.build_sequence(proc, grade, options)
+            common.show_sequence(seq)
+            seed = st.number_input("Seed", value=1, step=1, key="nf.seed")
+            if st.button("Start run", key="nf.start"):
+                folder = common.start_run(name, grade, int(seed), options, seq.duration_s, len(seq.expand()))
+                st.success(f"started: {folder}")
+
+with tab_result:
+    result = common.result_picker(name, key="nf.result")
+    if result is not None:
+        st.dataframe(numbers(result), hide_index=True, width="stretch")
+        common.show_result(result)
+
+with tab_compare:
+    st.markdown("Several sessions of the same procedure: mean per session and repeatability "
+                "(thesis table 4.3 and Fig. 4.14-4.15; for the redundant configuration table 4.4).")
+    dirs = common.session_dirs(name)
+    chosen = st.multiselect("Sessions", list(dirs), key="nf.compare")
+    if len(chosen) >= 2:
+        with common.guarded("comparison", catch_all=True):
+            from workbench.analysis import northfinding as nfm
+            from workbench.plots.northfinding import repeatability_figure
+
+            payloads = [common.analyze_session(name, dirs[c]).payload for c in chosen]
+            rows = nfm.sequence_table(payloads, [str(i + 1) for i in range(len(payloads))])
+            st.dataframe(pd.DataFrame(rows), hide_index=True)
+            st.pyplot(repeatability_figure(rows), clear_figure=True)
+            if name == "redundant":
+                st.dataframe(pd.DataFrame(nfm.pairing_table(payloads)), hide_index=True)

@@ -1,0 +1,175 @@
+"""AHRS on the table: attitude from gyros + accelerometer + magnetometer, raw vs calibrated (validation).
+
+Sequence: for each tilted mount of ``mounts`` (``[roll °, pitch °]``): a hold, a rotation at
+``rates_dps[0]`` for ``rotate_s``, an index by ``index_deg``, a rotation at ``rates_dps[1]``,
+a hold (``dwell_s`` each hold). Two mounts with the defaults: about 10 minutes.
+
+Analysis (``workbench analyze ahrs-table SESSION --calibration SET``): both AHRS filters of
+:mod:`workbench.nav.ahrs` (Kalman with gyro-bias states, complementary) run on the raw samples
+and on the samples compensated with the set, re-initialised at each mount (a remount moves the
+unit by hand). The process and accelerometer measurement noise come from the set's noise block
+(the same for both runs); the magnetometer noise from the samples; the declination from
+``declination_deg`` or the rig configuration. The table is the truth (``Session.attitude`` with
+the encoder angle), evaluated at the filters' update epochs inside the steps.
+
+``result.json``: ``raw`` and ``calibrated`` blocks (the Kalman filter's figures; the
+complementary filter's in a nested ``complementary`` block) with ``roll_error_deg``,
+``pitch_error_deg``, ``heading_error_deg`` (RMS over the sequence), ``*_max_deg``,
+``velocity_error_mps`` (null: an AHRS has no velocity), ``convergence_time_s`` (worst mount:
+time after which the heading error stays within ``heading_tol_deg`` and roll and pitch within
+``tilt_tol_deg``; null = never), ``gyro_bias_error`` (rad/s per axis, end of the last mount,
+against the table reference over the last ``bias_reference_s`` s) and ``gyro_bias_sigma``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from workbench import units
+from workbench.calset import CalibrationSet
+from workbench.errors import AnalysisError, ProcedureError
+from workbench.nav import ahrs
+from workbench.nav.compensate import check_calibration, compensate, imu_samples, process_noise
+from workbench.nav.strapdown import attitude_errors
+from workbench.nav.truth import declination, mount_segments, reference_gyro_bias, table_truth
+from workbench.procedure import ProcedureResult
+from workbench.sequence import Hold, Index, Rotate, Sequence, mount_from_euler
+from workbench.session import Session
+
+NAME = "ahrs-table"
+TITLE = "AHRS through table rate and tilt steps, raw vs calibrated (validation)"
+TRIADS = ("accel", "gyro", "mag")
+CAMPAIGN_ORDER = None  # a validation run, not a calibration step
+DEFAULTS = {
+    "mounts": [[10.0, -5.0], [-20.0, 15.0]],
+    "rates_dps": [20.0, -45.0],
+    "rotate_s": 120.0,
+    "index_deg": 90.0,
+    "dwell_s": 20.0,
+    "update_interval_s": 0.1,
+    "declination_deg": None,
+    "tau_tilt_s": 5.0,
+    "tau_heading_s": 20.0,
+    "heading_tol_deg": 1.0,
+    "tilt_tol_deg": 0.2,
+    "bias_reference_s": 60.0,
+    "force": False,
+}
+_SEQUENCE_KEYS = ("mounts", "rates_dps", "rotate_s", "index_deg", "dwell_s")
+_FILTERS = ("kalman", "complementary")
+
+
+def _opts(options: dict) -> dict:
+    unknown = set(options) - set(DEFAULTS)
+    if unknown:
+        raise ProcedureError(f"{NAME}: unknown option(s) {', '.join(sorted(unknown))} (known: {', '.join(DEFAULTS)})")
+    return {**DEFAULTS, **options}
+
+
+def sequence(spec, **options) -> Sequence:
+    """Per tilted mount: hold, rotate, index, rotate back the other way, hold."""
+    o = _opts(options)
+    if "mag" not in getattr(spec, "triads", ("mag",)):
+        raise ProcedureError(f"{NAME}: the unit has no magnetometer (the AHRS heading needs one)")
+    r1, r2 = (float(np.radians(r)) for r in o["rates_dps"])
+    steps = []
+    for roll, pitch in o["mounts"]:
+        mount = mount_from_euler("YX", [pitch, roll])
+        tag = f"roll {roll:g}° pitch {pitch:g}°"
+        steps += [Hold(mount=mount, table_angle=0.0, dwell_s=float(o["dwell_s"]), label=f"{tag} hold"),
+                  Rotate(mount=mount, rate=r1, revolutions=None, duration_s=float(o["rotate_s"]),
+                         label=f"{tag} {o['rates_dps'][0]:g}°/s"),
+                  Index(angle=float(np.radians(o["index_deg"])), dwell_s=float(o["dwell_s"]),
+                        label=f"{tag} index {o['index_deg']:g}°"),
+                  Rotate(mount=mount, rate=r2, revolutions=None, duration_s=float(o["rotate_s"]),
+                         label=f"{tag} {o['rates_dps'][1]:g}°/s"),
+                  Hold(mount=mount, dwell_s=float(o["dwell_s"]), label=f"{tag} final hold")]
+    return Sequence(NAME, steps, {k: o[k] for k in _SEQUENCE_KEYS})
+
+
+def _convergence(t: np.ndarray, err: np.ndarray, heading_tol: float, tilt_tol: float) -> float | None:
+    """Time from ``t[0]`` after which |heading error| < heading_tol and |roll|, |pitch| < tilt_tol (deg)."""
+    ok = (np.abs(err[:, 2]) < heading_tol) & (np.abs(err[:, 0]) < tilt_tol) & (np.abs(err[:, 1]) < tilt_tol)
+    if len(ok) == 0 or not ok[-1]:
+        return None
+    bad = np.nonzero(~ok)[0]
+    return float(t[0 if len(bad) == 0 else bad[-1] + 1] - t[0])
+
+
+def _run_filter(name: str, session: Session, samples, rows, noise, cfg, o) -> dict:
+    """One filter over one mount segment: epochs in steps, attitude errors (deg), bias error."""
+    res = ahrs.kalman(samples, noise, session.site.latitude, cfg) if name == "kalman" \
+        else ahrs.complementary(samples, session.site.latitude, cfg)
+    idx = rows[np.searchsorted(samples.t, res.t)]
+    truth = table_truth(session, idx)
+    err = np.degrees(attitude_errors(res.attitude, truth.attitude))
+    keep = truth.in_step
+    n_ref = int(round(o["bias_reference_s"] / samples.dt))
+    ref_rows = rows[-n_ref:]
+    ref, ref_sig = reference_gyro_bias(samples.gyro[-n_ref:], table_truth(session, ref_rows), session.site.latitude)
+    return {"t": res.t[keep], "errors_deg": err[keep],
+            "convergence_time_s": _convergence(res.t, err, o["heading_tol_deg"], o["tilt_tol_deg"]),
+            "gyro_bias_error": res.gyro_bias[-1] - ref, "gyro_bias_sigma": res.gyro_bias_sigma[-1],
+            "reference_sigma": ref_sig}
+
+
+def _metrics(segs: list[dict]) -> dict:
+    err = np.vstack([s["errors_deg"] for s in segs])
+    rms = np.sqrt(np.nanmean(err ** 2, axis=0))
+    peak = np.nanmax(np.abs(err), axis=0)
+    conv = [s["convergence_time_s"] for s in segs]
+    last = segs[-1]
+    return {"roll_error_deg": float(rms[0]), "pitch_error_deg": float(rms[1]), "heading_error_deg": float(rms[2]),
+            "roll_max_deg": float(peak[0]), "pitch_max_deg": float(peak[1]), "heading_max_deg": float(peak[2]),
+            "velocity_error_mps": None,
+            "convergence_time_s": None if any(c is None for c in conv) else max(conv),
+            "gyro_bias_error": last["gyro_bias_error"].tolist(),
+            "gyro_bias_sigma": np.hypot(last["gyro_bias_sigma"], last["reference_sigma"]).tolist()}
+
+
+def analyze(session: Session, calibration: CalibrationSet | None = None, **options) -> ProcedureResult:
+    """Raw and calibrated AHRS runs against the table (see the module docstring)."""
+    o = _opts(options)
+    warnings = check_calibration(calibration, session.unit.serial, TRIADS, bool(o["force"]), NAME)
+    if not session.has_mag:
+        raise AnalysisError(f"{session.name}: samples have no magnetometer columns mx, my, mz (the AHRS needs them)")
+    noise = process_noise(calibration)
+    warnings += list(noise.notes)
+    cfg = ahrs.AhrsConfig(update_interval_s=float(o["update_interval_s"]),
+                          declination=declination(session, o["declination_deg"]),
+                          tau_tilt_s=float(o["tau_tilt_s"]), tau_heading_s=float(o["tau_heading_s"]))
+    raw_all = imu_samples(session.samples, session.sample_rate_hz, session.name)
+    cal_all = compensate(raw_all, calibration, TRIADS)
+    blocks, payload = {}, {}
+    for mode, data in (("raw", raw_all), ("calibrated", cal_all)):
+        per_filter = {name: [] for name in _FILTERS}
+        for rows in mount_segments(session):
+            seg = data.slice(int(rows[0]), int(rows[-1]) + 1)
+            for name in _FILTERS:
+                per_filter[name].append(_run_filter(name, session, seg, rows, noise, cfg, o))
+        block = _metrics(per_filter["kalman"])
+        block["complementary"] = _metrics(per_filter["complementary"])
+        blocks[mode] = block
+        payload[mode] = {name: {"t": np.concatenate([s["t"] for s in segs]),
+                                "errors_deg": np.vstack([s["errors_deg"] for s in segs])}
+                         for name, segs in per_filter.items()}
+    result = {"raw": blocks["raw"], "calibrated": blocks["calibrated"], "calibration_id": calibration.id,
+              "declination_deg": float(np.degrees(cfg.declination)), "update_interval_s": cfg.update_interval_s}
+    return ProcedureResult(NAME, result, None, payload, _summary(blocks), warnings)
+
+
+def _summary(blocks: dict) -> list[str]:
+    lines = []
+    for mode, b in blocks.items():
+        for name, m in (("kalman", b), ("complementary", b["complementary"])):
+            lines.append(f"{mode} {name}: RMS roll {m['roll_error_deg']:.3f}°, pitch {m['pitch_error_deg']:.3f}°, "
+                         f"heading {m['heading_error_deg']:.2f}° (max {m['heading_max_deg']:.2f}°); gyro-bias error "
+                         + ", ".join(f"{units.to_unit(v, 'deg/h'):+.1f}" for v in m["gyro_bias_error"]) + " °/h")
+    return lines
+
+
+def figures(result: ProcedureResult) -> dict:
+    """Attitude errors against the table, raw vs calibrated, per filter (empty without a payload)."""
+    from workbench.plots.nav import ahrs_figures
+
+    return ahrs_figures(result.payload) if result.payload else {}

@@ -1,0 +1,187 @@
+"""ZUPT fine alignment on the table: validate a calibration set the way a land navigator uses it.
+
+Sequence: the unit static on the table at each of ``positions`` (``[mount, table angle °]``,
+like thesis Fig. 3.3-3.4), ``dwell_s`` each.
+
+Analysis (``workbench analyze zupt-alignment SESSION --calibration SET``): for every position,
+the thesis' ZUPT alignment (:func:`workbench.nav.zupt.align`, thesis sec. 3.3) runs twice, on
+the raw samples and on the samples compensated with the set (:func:`workbench.nav.compensate`),
+the process noise from the set's noise block in both runs. The heading is given from outside,
+as in the thesis: the table's (``table_zero_azimuth_deg`` overrides the site's, e.g. with a
+north-finding result; ``heading_sigma_deg`` is its 1-sigma). The table is the truth: attitude
+errors against ``Session.attitude``, gyro-bias errors against the bias measured on the table
+(mean output minus the known Earth rate over the last ``bias_reference_s`` of the position: the
+bias wanders, so the filter's final estimate is compared with its recent value), NED velocity
+(truly zero).
+
+``result.json``: ``raw`` and ``calibrated`` blocks with ``roll_error_deg``, ``pitch_error_deg``,
+``heading_error_deg`` (worst position, final), ``roll_error_60s_deg`` / ``pitch_error_60s_deg``
+(worst, 60 s after the EKF start), ``velocity_error_mps`` (worst norm of the final NED
+velocity), ``convergence_time_s`` (worst; null = never), ``gyro_bias_error`` (rad/s per axis, of
+the position with the largest error) and ``positions`` (per position details).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from workbench import units
+from workbench.calset import CalibrationSet
+from workbench.errors import AnalysisError, ProcedureError
+from workbench.nav import zupt
+from workbench.nav.compensate import check_calibration, compensate, imu_samples, process_noise
+from workbench.nav.strapdown import attitude_errors, euler_rph
+from workbench.nav.truth import reference_gyro_bias, table_truth
+from workbench.procedure import ProcedureResult
+from workbench.sequence import Hold, Sequence, mount_matrix
+from workbench.session import Session
+
+NAME = "zupt-alignment"
+TITLE = "ZUPT fine alignment on the table, raw vs calibrated (validation)"
+TRIADS = ("accel", "gyro")
+CAMPAIGN_ORDER = None  # a validation run, not a calibration step
+DEFAULTS = {
+    "positions": [["z-down", 0.0], ["z-down", 90.0], ["y-down", 45.0]],
+    "dwell_s": 180.0,
+    "level_s": 5.0,
+    "update_interval_s": 1.0,
+    "zarupt": False,
+    "gain_scaling": True,
+    "heading_sigma_deg": 0.1,
+    "bias_reference_s": 60.0,
+    "table_zero_azimuth_deg": None,
+    "raw_gyro_bias_prior_dps": 1.0,
+    "raw_accel_bias_prior_mg": 20.0,
+    "force": False,
+}
+_SEQUENCE_KEYS = ("positions", "dwell_s")
+_G0 = units.G0
+
+
+def _opts(options: dict) -> dict:
+    unknown = set(options) - set(DEFAULTS)
+    if unknown:
+        raise ProcedureError(f"{NAME}: unknown option(s) {', '.join(sorted(unknown))} (known: {', '.join(DEFAULTS)})")
+    return {**DEFAULTS, **options}
+
+
+def sequence(spec, **options) -> Sequence:
+    """A static hold of ``dwell_s`` at each ``[mount, table angle °]`` of ``positions``."""
+    o = _opts(options)
+    steps = []
+    for mount, angle_deg in o["positions"]:
+        mount_matrix(mount)  # raises on an unknown mount
+        steps.append(Hold(mount=mount, table_angle=float(np.radians(angle_deg)), dwell_s=float(o["dwell_s"]),
+                          label=f"{mount} {float(angle_deg):g}°"))
+    return Sequence(NAME, steps, {k: o[k] for k in _SEQUENCE_KEYS})
+
+
+def _priors(cal: CalibrationSet, noise_triad: str, calibrated: bool, raw_prior: float) -> np.ndarray:
+    """Bias prior (3,): raw = the option; calibrated = 2 x (set's bias sigma (+) bias instability).
+
+    The factor 2 covers what neither holds (turn-on repeatability, thermal residuals); an axis
+    the set did not observe falls back to the raw prior.
+    """
+    if not calibrated:
+        return np.full(3, raw_prior)
+    sig = cal.triads[noise_triad].sigma_of("bias")
+    bi = np.nan_to_num(cal.noise_term(noise_triad, "bias_instability"))
+    prior = 2.0 * np.hypot(sig, bi)
+    return np.where(np.isfinite(prior) & (prior > 0), prior, raw_prior)
+
+
+def _position(session: Session, step, samples, noise, cfg: zupt.ZuptConfig, az, ref_s: float) -> dict:
+    """Run the alignment on one static step and compare it with the table."""
+    rows = np.nonzero(session.samples["step"].to_numpy() == step.index)[0]
+    truth = table_truth(session, rows, az)
+    true_rph = euler_rph(truth.attitude[0])
+    res = zupt.align(samples, noise, session.site.latitude, float(true_rph[2]), session.site.height_m, cfg)
+    k0 = max(int(round(cfg.level_s / samples.dt)), len(rows) - int(round(ref_s / samples.dt)))
+    ref, ref_sig = reference_gyro_bias(samples.gyro[k0:], table_truth(session, rows[k0:], az), session.site.latitude)
+    err = np.degrees(attitude_errors(res.attitude, truth.attitude[0]))
+    i60 = min(len(res.t) - 1, int(np.searchsorted(res.t - res.t_start, 60.0)))
+    conv = res.convergence_time()
+    return {
+        "label": step.label, "step": step.index, "true_rph_deg": np.degrees(true_rph).tolist(),
+        "roll_error_deg": float(err[-1, 0]), "pitch_error_deg": float(err[-1, 1]),
+        "heading_error_deg": float(err[-1, 2]),
+        "roll_error_60s_deg": float(err[i60, 0]), "pitch_error_60s_deg": float(err[i60, 1]),
+        "attitude_sigma_deg": np.degrees(res.attitude_sigma[-1]).tolist(),
+        "velocity_error_mps": float(np.linalg.norm(res.velocity[-1])),
+        "convergence_time_s": conv,
+        "gyro_bias": res.gyro_bias[-1].tolist(), "gyro_bias_sigma": res.gyro_bias_sigma[-1].tolist(),
+        "gyro_bias_reference": ref.tolist(), "gyro_bias_reference_sigma": ref_sig.tolist(),
+        "gyro_bias_error": (res.gyro_bias[-1] - ref).tolist(),
+        "accel_bias": res.accel_bias[-1].tolist(), "accel_bias_sigma": res.accel_bias_sigma[-1].tolist(),
+    }, res, err
+
+
+def _block(positions: list[dict]) -> dict:
+    """Worst case over positions (attitude, velocity, convergence) plus the per-position list."""
+    def worst(key):
+        vals = [p[key] for p in positions if p[key] is not None and np.isfinite(p[key])]
+        return max(vals, key=abs) if vals else None
+
+    conv = [p["convergence_time_s"] for p in positions]
+    worst_bias = max(positions, key=lambda p: np.linalg.norm(p["gyro_bias_error"]))
+    return {
+        **{k: worst(k) for k in ("roll_error_deg", "pitch_error_deg", "heading_error_deg", "roll_error_60s_deg",
+                                 "pitch_error_60s_deg")},
+        "velocity_error_mps": max(p["velocity_error_mps"] for p in positions),
+        "convergence_time_s": None if any(c is None for c in conv) else max(conv),
+        "gyro_bias_error": worst_bias["gyro_bias_error"], "gyro_bias_sigma": worst_bias["gyro_bias_sigma"],
+        "positions": positions,
+    }
+
+
+def analyze(session: Session, calibration: CalibrationSet | None = None, **options) -> ProcedureResult:
+    """Raw and calibrated ZUPT alignment at each static position (see the module docstring)."""
+    o = _opts(options)
+    warnings = check_calibration(calibration, session.unit.serial, ("gyro", "accel"), bool(o["force"]), NAME)
+    noise = process_noise(calibration)
+    warnings += list(noise.notes)
+    steps = session.steps_of_kind("static")
+    if not steps:
+        raise AnalysisError(f"{session.name}: no static step to align on")
+    az = None if o["table_zero_azimuth_deg"] is None else float(np.radians(o["table_zero_azimuth_deg"]))
+    measurements = ("position", "velocity", "heading") + (("zarupt",) if o["zarupt"] else ())
+    blocks, payload = {}, {"t": [], "labels": [s.label or f"step {s.index}" for s in steps]}
+    for mode in ("raw", "calibrated"):
+        cfg = zupt.ZuptConfig(
+            level_s=float(o["level_s"]), update_interval_s=float(o["update_interval_s"]), measurements=measurements,
+            gain_scaling=bool(o["gain_scaling"]), heading_sigma=float(np.radians(o["heading_sigma_deg"])),
+            gyro_bias_prior=tuple(_priors(calibration, "gyro", mode == "calibrated",
+                                          np.radians(o["raw_gyro_bias_prior_dps"]))),
+            accel_bias_prior=tuple(_priors(calibration, "accel", mode == "calibrated",
+                                           o["raw_accel_bias_prior_mg"] * 1e-3 * _G0)))
+        rows, runs = [], []
+        for st in steps:
+            raw = imu_samples(session.step_samples(st.index), session.sample_rate_hz,
+                              f"{session.name}: step {st.index}")
+            samples = compensate(raw, calibration, ("gyro", "accel")) if mode == "calibrated" else raw
+            row, res, err = _position(session, st, samples, noise, cfg, az, float(o["bias_reference_s"]))
+            rows.append(row)
+            runs.append({"result": res, "errors_deg": err})
+        blocks[mode] = _block(rows)
+        payload[mode] = runs
+    result = {"raw": blocks["raw"], "calibrated": blocks["calibrated"], "calibration_id": calibration.id,
+              "measurements": list(measurements), "update_interval_s": float(o["update_interval_s"])}
+    return ProcedureResult(NAME, result, None, payload, _summary(blocks), warnings)
+
+
+def _summary(blocks: dict) -> list[str]:
+    lines = []
+    for mode, b in blocks.items():
+        conv = "never" if b["convergence_time_s"] is None else f"{b['convergence_time_s']:.0f} s"
+        lines.append(f"{mode}: roll {b['roll_error_deg']:+.3f}°, pitch {b['pitch_error_deg']:+.3f}°, "
+                     f"heading {b['heading_error_deg']:+.3f}° (worst position), |v_NED| "
+                     f"{b['velocity_error_mps'] * 1e3:.2f} mm/s, converged after {conv}, gyro-bias error "
+                     + ", ".join(f"{units.to_unit(v, 'deg/h'):+.2f}" for v in b["gyro_bias_error"]) + " °/h")
+    return lines
+
+
+def figures(result: ProcedureResult) -> dict:
+    """Thesis Fig. 3.6-3.10 for each position, raw vs calibrated (empty without a payload)."""
+    from workbench.plots.nav import zupt_figures
+
+    return zupt_figures(result.payload) if result.payload else {}

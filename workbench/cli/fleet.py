@@ -1,0 +1,83 @@
+"""``workbench batch``, ``simulate-fleet`` and ``certificate``: fleet-scale work."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+from rich.progress import BarColumn, Progress, TextColumn
+
+from workbench.cli import err, out
+from workbench.cli.run import parse_options
+from workbench.store import Store
+
+
+def batch(procedure: str = typer.Argument(..., metavar="PROCEDURE"),
+          session_dirs: list[Path] = typer.Argument(..., metavar="SESSION_DIR...", help="Session folders."),
+          scheduler: str = typer.Option("local", "--scheduler", help="'local' (a LocalCluster on 127.0.0.1), "
+                                                                     "'serial', or tcp://HOST:PORT."),
+          workers: int = typer.Option(2, "--workers", help="Workers of the local cluster."),
+          dashboard: bool = typer.Option(False, "--dashboard", help="Start the Dask dashboard (127.0.0.1:8787)."),
+          option: list[str] = typer.Option(None, "--option", "-o", help="Analysis option key=value."),
+          no_store: bool = typer.Option(False, "--no-store")) -> None:
+    """Analyse many sessions in parallel on Dask; results stream into the store; failures are isolated."""
+    from workbench.fleet.batch import cluster_client, run_batch
+
+    store = None if no_store else Store()
+    opts = parse_options(option)
+    bar = Progress(TextColumn("[bold]batch"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
+                   TextColumn("{task.fields[last]}"), console=err)
+    with bar:
+        task = bar.add_task("batch", total=len(session_dirs), last="")
+
+        def progress(done: int, total: int, outcome: dict) -> None:
+            bar.update(task, completed=done, last=("ok " if outcome["ok"] else "FAILED ")
+                       + Path(outcome["session_dir"]).name)
+
+        if scheduler == "serial":
+            report = run_batch(procedure, session_dirs, None, store, opts, progress)
+        else:
+            with cluster_client(scheduler, workers, dashboard) as client:
+                report = run_batch(procedure, session_dirs, client, store, opts, progress)
+    out.print(f"{len(report.succeeded)} analysed, {len(report.failures)} failed"
+              f"{'; results stored in ' + store.url if store else ''}")
+    for f in report.failures:
+        out.print(f"[red]failed:[/] {f['session_dir']}: {f['error']}", highlight=False)
+    if report.failures:
+        raise typer.Exit(1)
+
+
+def simulate_fleet_cmd(grade: str = typer.Option(..., "--grade", help="Grade name or fixture path."),
+                       units: int = typer.Option(..., "--units", help="Number of units."),
+                       procedure: str = typer.Option(..., "--procedure"),
+                       out_dir: Path = typer.Option(..., "--out"),
+                       seed: int = typer.Option(1, "--seed", help="Seed of the first unit; unit k uses seed + k."),
+                       option: list[str] = typer.Option(None, "--option", "-o", help="Sequence option key=value.")
+                       ) -> None:
+    """Record a procedure for N simulated units of one grade (one session folder per unit)."""
+    from workbench.fleet.simulate import simulate_fleet
+
+    with Progress(TextColumn("[bold]simulate"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
+                  console=err) as bar:
+        task = bar.add_task("simulate", total=units)
+        dirs = simulate_fleet(grade, units, procedure, out_dir, seed, options=parse_options(option),
+                              progress=lambda k, n, d: bar.update(task, completed=k))
+    out.print(f"{len(dirs)} sessions under {out_dir}")
+
+
+def certificate(set_id: str = typer.Argument(..., metavar="SET_ID"),
+                out_file: Path = typer.Option(Path("certificate.html"), "--out"),
+                pdf: bool = typer.Option(True, "--pdf/--no-pdf", help="Also print a PDF with Chromium if present.")
+                ) -> None:
+    """Render the calibration certificate of a stored set (HTML, and PDF where Chromium exists)."""
+    from workbench.fleet.certificate import write_certificate
+
+    store = Store()
+    for path in write_certificate(store.get_set(set_id), store, out_file, pdf):
+        out.print(f"wrote {path}")
+
+
+def register(app: typer.Typer) -> None:
+    app.command("batch")(batch)
+    app.command("simulate-fleet")(simulate_fleet_cmd)
+    app.command("certificate")(certificate)
