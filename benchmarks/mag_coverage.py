@@ -7,7 +7,8 @@ attitudes), turntable yaw sweeps (10° steps) at level and ±45°, ±30°, ±15�
 y, level only (hard iron there = the 2D offset, soft iron not observable). Each configuration has 1800 raw samples (turntable: 10 samples per position)
 and a reference field norm (48 µT) for the scale.
 
-Figures of merit: hard-iron error |b - b_true| (µT), soft-iron error max|A - A_true| (%),
+Figures of merit: hard-iron error |b - b_true| (µT), soft-iron error max|A - A_true| (%; for
+the symmetric fits, algebraic/ellipsoid/sphere/2d, against the symmetric polar factor of A_true),
 heading RMS (°) of the calibration on noise-free points at the same attitudes (true tilt,
 true declination; for level data the constant offset is removed, it is not observable).
 'fail' = the estimator refused the data (e.g. plain fit not an ellipsoid, 3D fit on a plane).
@@ -23,6 +24,7 @@ import warnings
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from workbench.analysis.mag_fit import polar_rotation
 from workbench.analysis.mag_heading import evaluate_heading
 from workbench.analysis.magnetometer import MagPoints, calibrate
 from workbench.errors import AnalysisError
@@ -32,6 +34,7 @@ H_NED = F * np.array([np.cos(DIP) * np.cos(DECL), np.cos(DIP) * np.sin(DECL), np
 HARD = np.array([8.0, -6.0, 4.5])
 SOFT = (np.eye(3) + np.array([[0.05, 0.02, -0.01], [0.02, -0.03, 0.015], [-0.01, 0.015, 0.04]])) \
     @ Rotation.from_rotvec([0.004, -0.008, 0.010]).as_matrix()
+SOFT_P = polar_rotation(SOFT)[0]  # symmetric polar factor
 METHODS = ("algebraic", "ellipsoid", "dip", "attitude", "2d", "auto")
 N_SAMPLES = 1800
 
@@ -66,7 +69,9 @@ def one(coverage: str, noise: float, method: str, seed: int) -> tuple[float, flo
     level = coverage == "level"
     ev = evaluate_heading(fit.compensate(clean), att.inv().apply([0.0, 0.0, 1.0]), att, None if level else DECL,
                           "table")
-    soft_err = np.nan if level else 100 * np.abs(fit.soft_iron - SOFT).max()
+    # symmetric fits estimate the polar factor P of I+M = P U (they cannot see U): compare with P
+    target = SOFT if fit.alignment is not None else SOFT_P
+    soft_err = np.nan if level else 100 * np.abs(fit.soft_iron - target).max()
     # level data: the 2D offset is the hard iron plus the soft-iron coupling of the vertical field
     offset = HARD[:2] + SOFT[:2, 2] * H_NED[2] if level else HARD
     hard_err = np.linalg.norm(fit.bias[:len(offset)] - offset)
@@ -81,6 +86,8 @@ def main() -> None:
     for coverage in ("full sphere", "±45°", "±30°", "±15°", "level"):
         for noise in (0.1, 0.3, 1.0):
             for method in METHODS:
+                if method == "2d" and coverage != "level":
+                    continue  # the 2D model does not hold on tilted data (the fit is meaningless there)
                 runs = [one(coverage, noise, method, 100 + s) for s in range(args.seeds)]
                 ok = [r for r in runs if r is not None]
                 if not ok:

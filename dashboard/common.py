@@ -235,7 +235,9 @@ def start_run(procedure: str, grade: Path, seed: int | None = None, options: Map
         cmd += ["--seed", str(int(seed))]
     for name, value in dict(options or {}).items():
         cmd += ["--option", f"{name}={json.dumps(value)}"]
-    wrapper = ['sh', '-c', f'"$@" > "{out / LOG_FILE}" 2>&1; echo $? > "{out / EXIT_FILE}"', "workbench-run", *cmd]
+    exit_tmp = out / f".{EXIT_FILE}.tmp"  # renamed into place, so a reader never sees it half-written
+    wrapper = ["sh", "-c", f'"$@" > "{out / LOG_FILE}" 2>&1; echo $? > "{exit_tmp}"; mv "{exit_tmp}" "{out / EXIT_FILE}"',
+               "workbench-run", *cmd]
     proc = subprocess.Popen(wrapper, cwd=str(REPO), start_new_session=True, stdin=subprocess.DEVNULL,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env={**os.environ, "COLUMNS": "120"})
     job = {"procedure": procedure, "unit": str(grade), "seed": seed, "options": dict(options or {}),

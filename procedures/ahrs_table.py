@@ -18,7 +18,8 @@ complementary filter's in a nested ``complementary`` block) with ``roll_error_de
 ``velocity_error_mps`` (null: an AHRS has no velocity), ``convergence_time_s`` (worst mount:
 time after which the heading error stays within ``heading_tol_deg`` and roll and pitch within
 ``tilt_tol_deg``; null = never), ``gyro_bias_error`` (rad/s per axis, end of the last mount,
-against the table reference over the last ``bias_reference_s`` s) and ``gyro_bias_sigma``.
+against the table reference: the mean output minus the known rate over the mount's last static
+step) and ``gyro_bias_sigma`` (the filter's and the reference's in quadrature).
 """
 
 from __future__ import annotations
@@ -52,7 +53,6 @@ DEFAULTS = {
     "tau_heading_s": 20.0,
     "heading_tol_deg": 1.0,
     "tilt_tol_deg": 0.2,
-    "bias_reference_s": 60.0,
     "force": False,
 }
 _SEQUENCE_KEYS = ("mounts", "rates_dps", "rotate_s", "index_deg", "dwell_s")
@@ -104,9 +104,12 @@ def _run_filter(name: str, session: Session, samples, rows, noise, cfg, o) -> di
     truth = table_truth(session, idx)
     err = np.degrees(attitude_errors(res.attitude, truth.attitude))
     keep = truth.in_step
-    n_ref = int(round(o["bias_reference_s"] / samples.dt))
-    ref_rows = rows[-n_ref:]
-    ref, ref_sig = reference_gyro_bias(samples.gyro[-n_ref:], table_truth(session, ref_rows), session.site.latitude)
+    labels = session.samples["step"].to_numpy()[rows]
+    static = [s.index for s in session.steps_of_kind("static") if np.any(labels == s.index)]
+    if not static:
+        raise AnalysisError(f"{session.name}: a mount without a static step: no gyro-bias reference")
+    sel = np.nonzero(labels == static[-1])[0]
+    ref, ref_sig = reference_gyro_bias(samples.gyro[sel], table_truth(session, rows[sel]), session.site.latitude)
     return {"t": res.t[keep], "errors_deg": err[keep],
             "convergence_time_s": _convergence(res.t, err, o["heading_tol_deg"], o["tilt_tol_deg"]),
             "gyro_bias_error": res.gyro_bias[-1] - ref, "gyro_bias_sigma": res.gyro_bias_sigma[-1],

@@ -13,6 +13,8 @@ null = not observed by the record). References: thesis (shared/seeds/000_...) ta
 
 from __future__ import annotations
 
+import numpy as np
+
 from workbench.analysis.allan_fit import TERMS, AllanAnalysis, analyze_record
 from workbench.calset import CalibrationSet
 from workbench.errors import AnalysisError, RigLimitError
@@ -24,7 +26,7 @@ from workbench.session import ACCEL, GYRO
 NAME = "allan"
 TITLE = "Allan variance (long static hold): noise terms with confidence intervals"
 TRIADS = ("accel", "gyro")
-CAMPAIGN_ORDER = 50
+CAMPAIGN_ORDER = 70  # last: the longest step of the campaign
 DEFAULTS = {"duration_s": 7200.0, "temperature_c": 25.0, "mount": "z-down", "soak": True,
             "taus": "octave", "gap_policy": "error"}
 LABEL = "allan"
@@ -71,7 +73,8 @@ def _result_dict(analyses: dict[str, AllanAnalysis], step) -> dict:
             "adev_hi": an.ci.hi.T.tolist(), "edf": an.ci.edf.T.tolist(), "alpha": an.ci.alpha.T.tolist(),
             "terms": an.noise_block(),
             "tau_range_s": {t: [f.terms[t].tau_range for f in an.fits] for t in TERMS},
-            "read_off": {k: [f.read_off[k] for f in an.fits] for k in an.fits[0].read_off},
+            "read_off": {k: [f.read_off[k] if np.isfinite(f.read_off[k]) else None for f in an.fits]
+                         for k in an.fits[0].read_off},
             "chi2_red": [f.chi2_red for f in an.fits],
         }
     return out

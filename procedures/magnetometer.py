@@ -12,7 +12,8 @@ Analysis (``workbench analyze magnetometer SESSION_DIR``): the fit points from t
 heading error against the table azimuth (:mod:`workbench.analysis.magnetometer`). Options:
 ``field_norm_ut`` (the site's field, fixes the scale of I+M), ``declination_deg``,
 ``accel_calibration`` (a calibration JSON whose ``accel`` block compensates the accelerometer
-used for the gravity direction), ``method``, ``robust``.
+used for the gravity direction), ``igrf`` (check the fitted norm and dip against the IGRF field
+at the site and date), ``method``, ``robust``.
 """
 
 from __future__ import annotations
@@ -42,9 +43,10 @@ DEFAULTS = {
     "field_norm_ut": None,
     "declination_deg": None,
     "accel_calibration": None,
+    "igrf": False,
 }
 _SEQUENCE_KEYS = ("tilts_deg", "mode", "yaw_steps", "dwell_s", "rate_dps")
-_ANALYSIS_KEYS = ("method", "robust", "field_norm_ut", "declination_deg", "accel_calibration")
+_ANALYSIS_KEYS = ("method", "robust", "field_norm_ut", "declination_deg", "accel_calibration", "igrf")
 
 
 def _options(options: dict, keys: tuple[str, ...]) -> dict:
@@ -71,7 +73,8 @@ def sequence(spec, **options) -> Sequence:
             n = int(o["yaw_steps"])
             if n < 3:
                 raise ProcedureError(f"{NAME}: yaw_steps {n} < 3")
-            steps += [Hold(mount, float(a), float(o["dwell_s"]), label) for a in np.linspace(0, 2 * np.pi, n, endpoint=False)]
+            steps += [Hold(mount, float(a), float(o["dwell_s"]), label)
+                      for a in np.linspace(0, 2 * np.pi, n, endpoint=False)]
         else:
             steps += [Hold(mount, 0.0, float(o["dwell_s"]), label),
                       Rotate(mount, float(np.radians(o["rate_dps"])), 1.0, label=label)]
@@ -86,12 +89,27 @@ def analyze(session: Session, **options) -> ProcedureResult:
     accel = None if o["accel_calibration"] is None else CalibrationSet.load(o["accel_calibration"]).model("accel")
     cal = calibrate(points, method=str(o["method"]), robust=bool(o["robust"]),
                     field_norm_ut=None if o["field_norm_ut"] is None else float(o["field_norm_ut"]),
-                    declination=decl, accel_model=accel, source=session.name)
+                    declination=decl, accel_model=accel, reference=_igrf(session) if o["igrf"] else None,
+                    source=session.name)
     fit = cal.fit
     calset = CalibrationSet(unit=session.unit, triads={"mag": triad_calibration(fit)},
                             notes={NAME: {"method": fit.method, "reason": cal.choice.reason}})
     return ProcedureResult(NAME, result=cal.to_dict(), calibration=calset, payload=cal,
                            summary=summary_lines(cal), warnings=list(cal.warnings))
+
+
+def _igrf(session: Session):
+    """IGRF field at the session's site on the session's date (today if the manifest has none)."""
+    from datetime import UTC, datetime
+
+    from workbench.analysis.mag_reference import igrf_field
+
+    try:
+        date = datetime.fromisoformat(str(session.created).replace("Z", "+00:00")).replace(tzinfo=None)
+    except ValueError:
+        date = datetime.now(UTC).replace(tzinfo=None)
+    s = session.site
+    return igrf_field(s.latitude_deg, s.longitude_deg, s.height_m, date)
 
 
 def summary_lines(cal) -> list[str]:
@@ -102,13 +120,17 @@ def summary_lines(cal) -> list[str]:
         return f"{units.fmt(v, unit, digits)} ± {units.fmt(s, unit, 2)}"
 
     off = fit.soft_iron - np.eye(3)
+    finite = fit.soft_iron_sigma[np.isfinite(fit.soft_iron_sigma)]
+    max_sig = float(finite.max()) if finite.size else float("nan")
+    if fit.scale_fixed_by == "reference":
+        norm = f"field norm: {units.fmt(fit.field_norm_ut, 'uT', 4)} (given: fixes the scale of I+M)"
+    else:
+        norm = f"field norm: {pm(fit.field_norm_ut, fit.field_norm_sigma, 'uT', 4)} (scale fixed by {fit.scale_fixed_by})"
     lines = [f"method: {fit.method} ({cal.choice.reason})",
              "hard iron: " + ", ".join(f"{a} {pm(v, s, 'uT')}" for a, v, s in zip("xyz", fit.bias, fit.bias_sigma)),
              f"soft iron: largest |I+M - I| element {np.abs(off).max() * 100:.3g} %, "
-             f"largest sigma {units.fmt(np.nanmax(fit.soft_iron_sigma) if np.isfinite(fit.soft_iron_sigma).any() else np.nan, '%', 2)}",
-             (f"field norm: {units.fmt(fit.field_norm_ut, 'uT', 4)} (given: fixes the scale of I+M)"
-              if fit.scale_fixed_by == "reference" else
-              f"field norm: {pm(fit.field_norm_ut, fit.field_norm_sigma, 'uT', 4)} (scale fixed by {fit.scale_fixed_by})"),
+             f"largest sigma {units.fmt(max_sig, '%', 2)}",
+             norm,
              f"coverage {cal.quality.coverage:.0%} of the sphere, field-norm residual RMS "
              f"{units.fmt(cal.quality.norm_residual_rms_ut, 'uT', 3)}"]
     if fit.dip is not None:
@@ -119,10 +141,10 @@ def summary_lines(cal) -> list[str]:
         lines.append("IMU-to-mag rotation: " + ", ".join(
             f"{a} {pm(v, s, 'mrad')}" for a, v, s in zip("xyz", fit.alignment, fit.alignment_sigma)))
     if cal.heading is not None:
-        lines.append(f"heading error vs table (tilt from {cal.heading.tilt_source}): RMS {np.degrees(cal.heading.rms):.3g}° "
-                     f"(uncalibrated {np.degrees(cal.raw_heading.rms):.3g}°"
-                     + (f", plain algebraic fit {np.degrees(cal.baseline_heading.rms):.3g}°"
-                        if cal.baseline_heading is not None else "") + ")")
+        base = (f", plain algebraic fit {np.degrees(cal.baseline_heading.rms):.3g}°"
+                if cal.baseline_heading is not None else "")
+        lines.append(f"heading error vs table (tilt from {cal.heading.tilt_source}): "
+                     f"RMS {np.degrees(cal.heading.rms):.3g}° (uncalibrated {np.degrees(cal.raw_heading.rms):.3g}°{base})")
     return lines
 
 

@@ -32,7 +32,8 @@ def sequence(spec, dwell_s: float = 60.0, turns: int = 10, start_offset_deg: flo
                             f"{settle_s:g} s")
     if int(turns) < 1:
         raise RigLimitError(f"{NAME}: turns {turns} must be >= 1")
-    steps = [Hold(mount, np.radians(start_offset_deg), dwell_s, "0"), Repeat([Index(STEP, dwell_s)], 8 * int(turns) - 1)]
+    steps = [Hold(mount, np.radians(start_offset_deg), dwell_s, "0"),
+             Repeat([Index(STEP, dwell_s)], 8 * int(turns) - 1)]
     return with_options(Sequence(NAME, steps), dwell_s=dwell_s, turns=int(turns), start_offset_deg=start_offset_deg,
                         settle_s=settle_s)
 

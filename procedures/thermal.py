@@ -15,7 +15,7 @@ Two chamber profiles:
 Analysis: :func:`workbench.analysis.thermal.analyze_thermal` (per-soak turntable fits, or a
 direct fit of bias against the unit temperature for ramps; cross-validated polynomial order;
 hysteresis). Product: a calibration set with the ``thermal`` block (t_ref ``t_ref_c``).
-The default profile is short (five soaks, -10..50 °C, up only) so it fits in a campaign;
+The default profile is short (seven soaks, -10..50 °C, up only) so it fits in a campaign;
 use ``t_min_c=-40, t_max_c=85, step_c=15, return_sweep=True`` for a full qualification sweep.
 """
 
@@ -35,7 +35,7 @@ TITLE = "Thermal sweep (chamber soaks or ramps): bias and scale factor vs temper
 TRIADS = ("accel", "gyro")
 CAMPAIGN_ORDER = 40
 DEFAULTS = {
-    "profile": "soak", "t_min_c": -10.0, "t_max_c": 50.0, "step_c": 15.0, "return_sweep": False,
+    "profile": "soak", "t_min_c": -10.0, "t_max_c": 50.0, "step_c": 10.0, "return_sweep": False,
     "dwell_s": 10.0, "rate_dps": None, "ramp_c_per_min": 1.0, "ramp_dwell_s": None, "mount": "z-down",
     "settle_tol_c_per_min": 0.05, "settle_window_s": 120.0,
     "t_ref_c": 25.0, "max_order": 5, "order": None, "hysteresis": "auto", "ramp_window_s": 60.0,
@@ -58,7 +58,7 @@ def setpoints(t_min_c: float, t_max_c: float, step_c: float, return_sweep: bool)
     return up + up[-2::-1] if return_sweep else up
 
 
-def sequence(spec, profile: str = "soak", t_min_c: float = -10.0, t_max_c: float = 50.0, step_c: float = 15.0,
+def sequence(spec, profile: str = "soak", t_min_c: float = -10.0, t_max_c: float = 50.0, step_c: float = 10.0,
              return_sweep: bool = False, dwell_s: float = 10.0, rate_dps: float | None = None,
              ramp_c_per_min: float = 1.0, ramp_dwell_s: float | None = None, mount="z-down",
              settle_tol_c_per_min: float = 0.05, settle_window_s: float = 120.0, **_analysis_options) -> Sequence:

@@ -17,7 +17,9 @@ bias wanders, so the filter's final estimate is compared with its recent value),
 ``result.json``: ``raw`` and ``calibrated`` blocks with ``roll_error_deg``, ``pitch_error_deg``,
 ``heading_error_deg`` (worst position, final), ``roll_error_60s_deg`` / ``pitch_error_60s_deg``
 (worst, 60 s after the EKF start), ``velocity_error_mps`` (worst norm of the final NED
-velocity), ``convergence_time_s`` (worst; null = never), ``gyro_bias_error`` (rad/s per axis, of
+velocity), ``convergence_time_s`` (worst; null = never: the time after which the free mechanisation
+drifts no more than 5x the white sensor noise over each correction interval, the thesis'
+"indicates itself to be at rest and non-rotating"), ``gyro_bias_error`` (rad/s per axis, of
 the position with the largest error) and ``positions`` (per position details).
 """
 
@@ -103,9 +105,9 @@ def _position(session: Session, step, samples, noise, cfg: zupt.ZuptConfig, az, 
     conv = res.convergence_time()
     return {
         "label": step.label, "step": step.index, "true_rph_deg": np.degrees(true_rph).tolist(),
-        "roll_error_deg": float(err[-1, 0]), "pitch_error_deg": float(err[-1, 1]),
-        "heading_error_deg": float(err[-1, 2]),
-        "roll_error_60s_deg": float(err[i60, 0]), "pitch_error_60s_deg": float(err[i60, 1]),
+        "roll_error_deg": _num(err[-1, 0]), "pitch_error_deg": _num(err[-1, 1]),
+        "heading_error_deg": _num(err[-1, 2]),
+        "roll_error_60s_deg": _num(err[i60, 0]), "pitch_error_60s_deg": _num(err[i60, 1]),
         "attitude_sigma_deg": np.degrees(res.attitude_sigma[-1]).tolist(),
         "velocity_error_mps": float(np.linalg.norm(res.velocity[-1])),
         "convergence_time_s": conv,
@@ -116,10 +118,15 @@ def _position(session: Session, step, samples, noise, cfg: zupt.ZuptConfig, az, 
     }, res, err
 
 
+def _num(x: float) -> float | None:
+    """A JSON number, or None where the value is undefined (Euler roll/heading at pitch ±90°)."""
+    return float(x) if np.isfinite(x) else None
+
+
 def _block(positions: list[dict]) -> dict:
     """Worst case over positions (attitude, velocity, convergence) plus the per-position list."""
     def worst(key):
-        vals = [p[key] for p in positions if p[key] is not None and np.isfinite(p[key])]
+        vals = [p[key] for p in positions if p[key] is not None]
         return max(vals, key=abs) if vals else None
 
     conv = [p["convergence_time_s"] for p in positions]
@@ -175,7 +182,9 @@ def _summary(blocks: dict) -> list[str]:
         conv = "never" if b["convergence_time_s"] is None else f"{b['convergence_time_s']:.0f} s"
         lines.append(f"{mode}: roll {b['roll_error_deg']:+.3f}°, pitch {b['pitch_error_deg']:+.3f}°, "
                      f"heading {b['heading_error_deg']:+.3f}° (worst position), |v_NED| "
-                     f"{b['velocity_error_mps'] * 1e3:.2f} mm/s, converged after {conv}, gyro-bias error "
+                     f"{b['velocity_error_mps'] * 1e3:.2f} mm/s, converged after {conv}; gyro bias estimated "
+                     + ", ".join(f"{units.to_unit(v, 'deg/h'):+.1f}" for v in b["positions"][0]["gyro_bias"])
+                     + " °/h (first position), error against the table "
                      + ", ".join(f"{units.to_unit(v, 'deg/h'):+.2f}" for v in b["gyro_bias_error"]) + " °/h")
     return lines
 

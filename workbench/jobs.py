@@ -36,7 +36,7 @@ def open_rig(cfg: RigConfig, truth, seed: int, state=None):
         from workbench.drivers.rig import open_real_rig
     except ImportError:
         raise WorkbenchError(f"rig {cfg.name}: driver {cfg.driver!r} is not available in this version") from None
-    return open_real_rig(cfg, truth, seed)
+    return open_real_rig(cfg, truth, seed, state)
 
 
 def applies(proc: ModuleType, spec) -> bool:
@@ -99,12 +99,13 @@ class CampaignResult:
 
 def run_campaign(spec, truth, cfg: RigConfig, seed: int, out_dir: Path, store=None,
                  progress_for: Callable[[str], Progress | None] | None = None,
-                 only: list[str] | None = None) -> CampaignResult:
+                 only: list[str] | None = None, options: Mapping[str, Mapping] | None = None) -> CampaignResult:
     """Run every calibration procedure that applies to the unit, in order, and merge their sets.
 
     Each procedure records into ``out_dir/<name>/session`` and writes its results and figures to
     ``out_dir/<name>``; the merged set goes to ``out_dir/calibration.json`` and, with a
     ``store``, into the store (per-procedure results too), after everything succeeded.
+    ``options`` maps a procedure name to its sequence options (defaults otherwise).
     """
     procs = [p for p in campaign_procedures(set(spec.triads)) if applies(p, spec) and not needs_calibration(p)]
     if only:
@@ -117,7 +118,8 @@ def run_campaign(spec, truth, cfg: RigConfig, seed: int, out_dir: Path, store=No
     for k, proc in enumerate(procs):
         pdir = out_dir / proc.NAME
         progress = progress_for(proc.NAME) if progress_for else None
-        session = record_procedure(proc, spec, truth, cfg, seed + 101 * (k + 1), pdir / "session", None, progress)
+        session = record_procedure(proc, spec, truth, cfg, seed + 101 * (k + 1), pdir / "session",
+                                   (options or {}).get(proc.NAME), progress)
         sessions[proc.NAME] = session
         results[proc.NAME] = run_analysis(proc, session, {}, pdir, None)
     sets = [r.calibration for r in results.values() if r.calibration is not None]

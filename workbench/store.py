@@ -243,6 +243,7 @@ class Store:
     def add_session(self, session_id: str, serial: str, model: str, procedure: str, path: str,
                     sha256: str = "", n_steps: int = 0, complete: bool = True) -> None:
         """Record a session (or update its completeness when it is recorded again on resume)."""
+        path = str(Path(path).resolve()) if path else ""
         with self.transaction() as db:
             self._ensure_unit(db, serial, model)
             row = db.get(SessionRow, session_id)

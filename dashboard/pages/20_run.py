@@ -94,7 +94,8 @@ def runs_section() -> None:
             st.rerun()
         live_progress(picked)
     elif status.state == "failed":
-        st.error(f"Run {picked.name} failed (exit code {status.exit_code}). Last lines of its log:", icon="⚠️")
+        how = f"failed (exit code {status.exit_code})" if status.exit_code is not None else "was stopped"
+        st.error(f"Run {picked.name} {how}. Last lines of its log:", icon="⚠️")
         st.code(status.log or "(empty log)", language=None)
     else:
         st.success(f"Run {picked.name} finished: {status.steps_done} steps recorded.")

@@ -111,7 +111,7 @@ with tab_browse:
         common.show_error(exc)
         st.stop()
 
-    c1, c2, c3, c4 = st.columns(4)
+    c1, c2, c3, c4 = st.columns([3, 2, 1, 1])
     c1.metric("Unit", f"{session.unit.serial}")
     c2.metric("Procedure", session.procedure or "—")
     c3.metric("Samples", f"{len(session.samples):,}")

@@ -2,16 +2,18 @@
 
 Library calls only: ``common.result_picker`` runs ``procedures/thermal.py``'s analysis; the
 tables read the :class:`~workbench.analysis.thermal.ThermalResult` in lab units (°/s, mg,
-ppm); the figures come from the procedure's ``figures``; exports go through the registry.
+ppm); the figures of one chosen quantity are drawn by ``workbench.plots.thermal``; exports go
+through the registry.
 """
 
+import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 import streamlit as st
 
 from dashboard import common
 from workbench import registry
-from workbench.plots.thermal import display_unit
+from workbench.plots.thermal import display_unit, order_figure, quantity_figure, residual_figure
 
 TITLE = "Thermal"
 
@@ -44,7 +46,15 @@ if result is not None:
                              index=pd.Index(f.cv_orders, name="order"))
         st.markdown(f"**{q}** ({unit}; blank = too few temperatures)")
         st.dataframe(table.replace({np.nan: None}), width="stretch")
-    common.show_result(result)
+    common.show_result(result, figures=False)
+    quantity = st.selectbox("Figures of", list(r.fits), key="thermal.figures")
+    fit = r.fits[quantity]
+    for name, draw in (("fit", quantity_figure), ("residuals after compensation", residual_figure),
+                       ("cross-validation", order_figure)):
+        st.markdown(f"**{quantity}: {name}**")
+        fig = draw(fit)
+        st.pyplot(fig, clear_figure=True)
+        plt.close(fig)
     if result.calibration is not None:
         st.subheader("Export")
         fmt = st.selectbox("Format", ["px4", "ardupilot", "c-header", "json"], key="thermal.export")

@@ -20,7 +20,8 @@ PROCEDURES = {"maytagging": "Maytagging (±180°, thesis seq. 1-7)", "earth-rate
 def numbers(result) -> pd.DataFrame:
     """Achieved and theoretical figures of one result (lab units)."""
     r, th = result.result, result.result["theory"]
-    rows = [("azimuth of body x at table zero", f"{r['azimuth_deg']:.4f} °", f"± {r['azimuth_sigma_mrad']:.3g} mrad (1σ)"),
+    rows = [("azimuth of body x at table zero", f"{r['azimuth_deg']:.4f} °",
+             f"± {r['azimuth_sigma_mrad']:.3g} mrad (1σ)"),
             (f"per-{r['units']} std", f"{r['pair_std_mrad']:.3g} mrad" if r["pair_std_mrad"] is not None else "—",
              f"theory: ARW {th['arw_pair_sigma_mrad'] or float('nan'):.3g} mrad, "
              f"Allan {th['allan_pair_sigma_mrad'] or float('nan'):.3g} mrad ({th['source']})"),

@@ -15,7 +15,7 @@ import streamlit as st
 from dashboard import common
 from workbench import registry, units
 from workbench.diff import diff_sets
-from workbench.errors import WorkbenchError
+from workbench.errors import ExportError, WorkbenchError
 
 TITLE = "Calibration sets"
 FIELD_UNITS = {"scale_misalignment": "ppm", "nonlinearity": None, "g_sensitivity": None}
@@ -147,6 +147,9 @@ with tab_show:
         with cols[i % len(cols)]:
             try:
                 out = mod.export(calset)
+            except ExportError as exc:  # the format cannot express this set: say why, not an alarm
+                st.warning(f"{fmt} ({mod.SUFFIX}) not available: {exc}")
+                continue
             except Exception as exc:  # noqa: BLE001 - one exporter's failure leaves the others usable
                 common.show_error(exc, f"export {fmt}")
                 continue

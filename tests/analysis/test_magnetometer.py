@@ -123,12 +123,14 @@ def test_turntable_30deg_tilt(method):
     assert np.degrees(cal.fit.dip) == pytest.approx(60.0, abs=4 * np.degrees(cal.fit.dip_sigma))
 
 
-def test_turntable_30deg_raw_samples_attitude_fit():
-    # the vector fit also takes raw 0.3 µT samples (e.g. continuous rotation) without bias
+@pytest.mark.parametrize("method", ["attitude", "dip"])
+def test_turntable_30deg_raw_samples(method):
+    # raw 0.3 µT samples (e.g. continuous rotation) without noise-induced bias: the residuals are
+    # first-order distances in µT, so a flat far-away ellipsoid gains nothing from the noise
     rng = np.random.default_rng(22)
     att = turntable(30.0, repeat=10)  # 1800 samples at 0.3 µT
     m, acc = measure(att, rng)
-    cal = calibrate(MagPoints(m, acc, att, "NED"), method="attitude", field_norm_ut=F)
+    cal = calibrate(MagPoints(m, acc, att, "NED"), method=method, field_norm_ut=F)
     assert grid_heading_rms(cal.fit, turntable(30.0, 5.0)) < 0.2
     assert np.all(np.abs(cal.fit.bias - HARD) < 4 * cal.fit.bias_sigma)
 
@@ -266,3 +268,24 @@ def test_dip_fit_needs_accelerometer():
     m, _ = _full_points()
     with pytest.raises(AnalysisError, match="accelerometer"):
         calibrate(MagPoints(m), method="dip")
+
+
+# -- geomagnetic reference -----------------------------------------------------------------
+def test_igrf_reference_field_is_plausible_and_checks_the_fit():
+    from datetime import datetime
+
+    from workbench.analysis.mag_reference import ReferenceField, compare, igrf_field
+
+    # plausibility against the known field of southern Italy (magnetic charts: ~46-47 µT,
+    # inclination ~56-58°, declination ~3-5° E); catches unit (nT/µT) and sign/axis slips
+    ref = igrf_field(40.8, 14.25, 30.0, datetime(2026, 11, 22))
+    assert ref.norm_ut == pytest.approx(46.5, abs=1.0)
+    assert np.degrees(ref.dip) == pytest.approx(57.0, abs=1.5)
+    assert np.degrees(ref.declination) == pytest.approx(4.0, abs=1.5)
+    rng = np.random.default_rng(81)
+    att = turntable(30.0)
+    m, acc = measure(att, rng, noise=STEP_NOISE)
+    fit = calibrate(MagPoints(m, acc, att, "NED")).fit  # truth 48 µT, dip 60°: dip is 2.7° off IGRF
+    notes = compare(fit, ref)
+    assert any("dip" in n for n in notes) and not any("norm" in n for n in notes)  # 48 vs 46.7: within 5 %
+    assert compare(fit, ReferenceField(48.0, DIP, DECL)) == []

@@ -113,3 +113,27 @@ def test_15deg_fixture_continuous_rotation():
     assert cal.fit.method == "attitude"
     assert grid_heading_rms_deg(cal.fit, truth, session, 15.0) < 0.2  # issue target for ±15° with table angles
     assert np.abs(cal.fit.bias - truth.mag.bias).max() < 0.1
+
+
+def test_igrf_option_checks_the_rig_field(tilted_run):
+    # the sim rig's field (48 µT, dip 60°) is not the IGRF field at its site (Naples, dip ~57°)
+    session, _, _ = tilted_run
+    result = proc.analyze(session, igrf=True)
+    assert result.result["reference_field"]["source"] == "IGRF"
+    assert any("dip" in w and "IGRF" in w for w in result.warnings)
+
+
+def test_sequence_follows_the_fixture_and_rejects_bad_options():
+    seq = proc.sequence(SPEC, tilts_deg=[[0, 0], [20, 0]], yaw_steps=8, dwell_s=3.0)
+    plan = seq.expand()
+    assert len(plan) == 16 and seq.duration_s == pytest.approx(48.0)
+    tilted = np.array(plan[8].mount)
+    assert np.degrees(np.arccos(tilted[2, 2])) == pytest.approx(20.0)  # body z 20° off the table axis
+    assert sorted({round(np.degrees(p.table_angle)) % 360 for p in plan}) == list(range(0, 360, 45))
+    from workbench.errors import ProcedureError
+    with pytest.raises(ProcedureError, match="mode"):
+        proc.sequence(SPEC, mode="wobble")
+    with pytest.raises(ProcedureError, match="unknown option"):
+        proc.sequence(SPEC, tilt=[0, 0])
+    with pytest.raises(ProcedureError, match="no magnetometer"):
+        proc.sequence(load_spec("industrial_mems"))

@@ -282,7 +282,8 @@ def test_index_that_is_not_180_by_the_encoder_is_an_error():
 
 def test_dwell_shorter_than_settling_is_an_error():
     s = synth_session(maytag_angles(2), dwell_s=3.0)
-    with pytest.raises(AnalysisError, match=r"step 0 \(static\): static dwell 2.75 s is not longer than the settling time 5 s"):
+    with pytest.raises(AnalysisError,
+                       match=r"step 0 \(static\): static dwell 2.75 s is not longer than the settling time 5 s"):
         nfm.find_north(s, "maytagging", settle_s=5.0)
     import procedures.maytagging as may
 
@@ -341,6 +342,20 @@ def test_carousel_and_earth_rate_procedures_through_the_simulator():
     s, _ = simulate(er.sequence(CVG, dwell_s=10.0, step_deg=45.0, turns=1), CVG, seed=5)
     res = er.analyze(s)
     assert res.result["earth_rate_amplitude"] == pytest.approx(OMEGA_N, rel=0.03)
+
+
+def test_redundant_procedure_through_the_simulator():
+    import procedures.redundant as red
+    from workbench.sim import simulate
+
+    s, _ = simulate(red.sequence(CVG, dwell_s=10.0, turns=2), CVG, seed=6)
+    res = red.analyze(s)
+    rows = res.result["redundant"]["pairings"]
+    assert [r["pairing_deg"] for r in rows][:2] == ["0-45", "45-90"] and all(r["n"] == 2 for r in rows)
+    assert len(res.result["pair_azimuths_deg"]) == 16
+    # 16 estimates of ~ARW theory at 8 s (~6 mrad) plus bias wander: mean within 15 mrad (~8 sigma/sqrt(16))
+    assert abs(res.result["azimuth_error_mrad"]) < 15.0
+    assert set(red.figures(res)) == {"earth_rate", "azimuth", "pairings"}
 
 
 def test_applies_only_to_grades_that_resolve_earth_rate():

@@ -3,7 +3,8 @@
 ``fake_workbench.py run PROC --unit U --rig sim --out DIR [--seed N]`` writes ``DIR/session.json``
 with 3 planned static steps, appends one step (and ``parts/step_NNNNN.parquet``) every
 ``STEP_S`` seconds, then ``DIR/result.json``; procedure ``fails`` stops after the first step
-with an error message and exit code 2, as the real CLI does for a WorkbenchError.
+with an error message and exit code 2, as the real CLI does for a WorkbenchError; procedure
+``slow`` takes 3 s per step (to be stopped).
 """
 
 import json
@@ -14,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-STEP_S = 0.2  # s of wall time per fake step
+STEP_S = {"slow": 3.0}  # s of wall time per fake step, by procedure name (default 0.2 s)
 DWELL_S = 10.0  # s of rig time per step, 10 Hz
 
 
@@ -24,7 +25,7 @@ def main(argv: list[str]) -> int:
     planned = [{"kind": "static", "duration_s": DWELL_S} for _ in range(3)]
     manifest = {"format": "workbench-session/1", "procedure": proc, "planned": planned, "steps": []}
     for i in range(3):
-        time.sleep(STEP_S)
+        time.sleep(STEP_S.get(proc, 0.2))
         t = i * DWELL_S + np.arange(int(DWELL_S * 10)) / 10
         df = pd.DataFrame({"t": t, "step": i, **{c: np.full(t.size, 0.1 * k) for k, c in enumerate(
             ["gx", "gy", "gz", "ax", "ay", "az"])}})

@@ -17,11 +17,12 @@ def test_thermal_page_shows_models_and_exports(seeded_db, tmp_path):
     from workbench.sim import simulate
 
     spec = load_spec("industrial_mems")
-    truth = replace(draw_unit(spec, 5), sample_rate_hz=10.0, thermal_time_constant_s=30.0)
+    truth = replace(draw_unit(spec, 5), sample_rate_hz=5.0, thermal_time_constant_s=30.0)
     run = tmp_path / "runs" / "20260101T000000_thermal_industrial_mems"
     run.mkdir(parents=True)
     (run / "job.json").write_text(json.dumps({"procedure": "thermal"}))
-    simulate(proc.sequence(spec, dwell_s=5.0), truth, 5, out_dir=run / "output")
+    seq = proc.sequence(spec, t_min_c=10.0, t_max_c=40.0, step_c=15.0, dwell_s=5.0)  # three soaks
+    simulate(seq, truth, 5, out_dir=run / "output")
     at = AppTest.from_file(str(PAGE), default_timeout=120).run()
     assert not at.exception
     assert "Thermal sweeps" in [t.value for t in at.title]

@@ -11,7 +11,11 @@ are fitted non-negatively (scipy NNLS) with weights 1 / var(AVAR_k), var = 2 mod
 (the chi-squared variance of each point, Greenhall EDF), re-weighted from the model until it
 converges. Every subset of terms is fitted; subsets in which some term carries a third of
 the model at fewer than two of the measured taus are rejected (the data do not show that term),
-and among the rest the Bayesian information criterion on the weighted residuals picks one.
+and among the rest the Bayesian information criterion on the weighted residuals picks one
+(chi-squared divided by 2: neighbouring overlapping AVAR points are correlated, about half
+of their information is shared); models within 2 of the best score are indistinguishable and
+the one with fewest terms is taken. A fitted term whose removal raises that chi-squared by less
+than 3.84 (95 %, 1 dof) gets a lower 95 % limit of 0: the data do not exclude its absence.
 A term outside the chosen model is "not observed": its value is NaN and its 95 % interval is
 [0, upper bound], the bound being the smallest ratio of a point's upper 97.5 % limit to the
 term's basis function. For a fitted term the interval follows from the variance of theta
@@ -42,6 +46,9 @@ TERMS = ("quantization", "white", "bias_instability", "rrw", "rate_ramp")
 FLICKER = 2.0 * np.log(2.0) / np.pi  # AVAR per B^2; ADEV floor 0.664 B
 VISIBLE_SHARE = 1.0 / 3.0  # a term must carry this share of the model AVAR ...
 VISIBLE_POINTS = 2  # ... at this many taus at least
+PARSIMONY = 2.0  # BIC difference below which the model with fewer terms is preferred
+CORRELATION = 2.0  # overlapping AVAR points at octave taus share about half their information:
+# weighted chi-squared differences are divided by this before model comparison
 _IRLS_ITER = 30
 
 
@@ -118,23 +125,25 @@ def fit_channel(tau: np.ndarray, dev: np.ndarray, edf: np.ndarray, hi: np.ndarra
     ok = np.isfinite(dev) & (dev > 0) & np.isfinite(edf) & (edf > 0)
     tau, avar, edf, hi = tau[ok], dev[ok] ** 2, edf[ok], hi[ok]
     a = basis(tau)
-    best: tuple[float, np.ndarray, np.ndarray, list[int]] | None = None
+    fits: dict[tuple[int, ...], tuple[np.ndarray, np.ndarray, float]] = {}
     for size in range(1, 6):
-        for cols in map(list, itertools.combinations(range(5), size)):
-            theta, w = _irls(a, avar, edf, cols)
+        for cols in itertools.combinations(range(5), size):
+            theta, w = _irls(a, avar, edf, list(cols))
             model = a @ theta
-            if np.any(theta[cols] <= 0) or not np.all(model > 0):
+            if np.any(theta[list(cols)] <= 0) or not np.all(model > 0):
                 continue
-            share = (a[:, cols] * theta[cols]) / model[:, None]
-            if np.any(np.sum(share >= VISIBLE_SHARE, axis=0) < VISIBLE_POINTS):
-                continue
-            chi = float(np.sum(w * (avar - model) ** 2))
-            bic = chi + len(cols) * np.log(len(tau))
-            if best is None or bic < best[0]:
-                best = (bic, theta, w, cols)
-    if best is None:
+            fits[cols] = (theta, w, float(np.sum(w * (avar - model) ** 2)) / CORRELATION)
+    visible = {cols: f for cols, f in fits.items()
+               if np.all(np.sum((a[:, list(cols)] * f[0][list(cols)]) / (a @ f[0])[:, None] >= VISIBLE_SHARE, axis=0)
+                         >= VISIBLE_POINTS)}
+    if not visible:
         raise ValueError(f"{column}: no noise model fits the Allan curve")
-    _, theta, w, cols = best
+    score = {cols: f[2] + len(cols) * np.log(len(tau)) for cols, f in visible.items()}
+    top = min(score.values())
+    # models within 2 of the best score are not distinguishable: take the simplest of them
+    best = min((c for c in score if score[c] <= top + PARSIMONY), key=lambda c: (len(c), score[c]))
+    theta, w, chi_best = visible[best]
+    cols = list(best)
     model = a @ theta
     dof = max(len(tau) - len(cols), 1)
     chi2_red = float(np.sum(w * (avar - model) ** 2) / dof)
@@ -149,6 +158,9 @@ def fit_channel(tau: np.ndarray, dev: np.ndarray, edf: np.ndarray, hi: np.ndarra
             nu = 2.0 * theta[k] ** 2 / var if var > 0 else np.inf
             lo, up = ((theta[k], theta[k]) if not np.isfinite(nu) else
                       (nu * theta[k] / chi2.ppf(0.975, nu), nu * theta[k] / chi2.ppf(0.025, nu)))
+            without = tuple(c for c in best if c != k)
+            if not without or without not in fits or fits[without][2] - chi_best < chi2.ppf(0.95, 1):
+                lo = 0.0  # the data do not exclude the term's absence at 95 %
             terms[name] = NoiseTerm(name, float(np.sqrt(theta[k])), (float(np.sqrt(lo)), float(np.sqrt(up))), True,
                                     _dominant_range(k, theta, float(tau.min()), float(tau.max())))
         else:

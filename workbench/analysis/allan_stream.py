@@ -74,7 +74,7 @@ def stream_deviation(path: str | Path, columns: list[str] | tuple[str, ...], rat
     if kind not in STREAM_KINDS:
         raise AnalysisError(f"{source}: streaming supports {', '.join(STREAM_KINDS)}, not {kind}")
     try:
-        pf = pq.ParquetFile(path)
+        pf = pq.ParquetFile(path, pre_buffer=False)  # pre-buffering holds whole row groups twice
     except Exception as exc:  # pyarrow raises several types for unreadable files
         raise AnalysisError(f"{source}: cannot read Parquet ({type(exc).__name__}: {str(exc)[:120]})") from None
     missing = [c for c in columns if c not in pf.schema_arrow.names]

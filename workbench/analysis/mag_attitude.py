@@ -3,7 +3,7 @@
 - :func:`fit_dip`: the accelerometer gives the down direction ``d`` in the IMU axes; the
   field makes a constant angle with it (dip ``δ``), so besides ``|h| = F`` every point obeys
   ``d · h = F sin δ``. With ``h = inv(G) (m - b)`` and ``G = F (I + M)`` a full (non-symmetric)
-  ``G`` is fitted: the second equation fixes the rotation an ellipsoid leaves free, i.e. the
+  ``G`` is fitted (both constraints as first-order distances of ``m`` in µT): the second equation fixes the rotation an ellipsoid leaves free, i.e. the
   rotation between magnetometer and accelerometer axes, and it holds the fit together when
   the sphere is covered only in a cap (limited tilt).
 - :func:`fit_attitude`: with the body-to-reference attitude ``C_k`` known from the table
@@ -57,15 +57,21 @@ def fit_dip(mag: np.ndarray, accel: np.ndarray, field_norm_ut: float | None = No
         g0 = f0.field_norm_ut * f0.soft_iron
         h = (mag - f0.bias) @ np.linalg.inv(g0).T
         dip0 = float(np.median(np.arcsin(np.clip(np.sum(d * h, axis=1) / np.linalg.norm(h, axis=1), -1, 1))))
-        starts.append((np.concatenate([f0.bias, np.linalg.inv(g0).ravel(), [dip0]]), f0.field_norm_ut))
+        starts.append(np.concatenate([f0.bias, np.linalg.inv(g0).ravel(), [dip0]]))
     if not starts:
         raise AnalysisError("dip fit: no starting ellipsoid or sphere could be fitted")
 
     best = None
-    for p0, f_scale in starts:
-        def resid(p, idx, f_scale=f_scale):
-            h = (mag[idx] - p[:3]) @ p[3:12].reshape(3, 3).T
-            return f_scale * np.column_stack([np.linalg.norm(h, axis=1) - 1.0, np.sum(d[idx] * h, axis=1) - np.sin(p[12])])
+    def resid(p, idx):
+        b = p[3:12].reshape(3, 3)
+        u = (mag[idx] - p[:3]) @ b.T  # unit-field vector in the IMU axes
+        nu = np.linalg.norm(u, axis=1)
+        # both constraints as first-order distances of m (µT): residual / |gradient wrt m|
+        norm_res = (nu - 1.0) * nu / np.linalg.norm(u @ b, axis=1)
+        dip_res = (np.sum(d[idx] * u, axis=1) - np.sin(p[12])) / np.linalg.norm(d[idx] @ b, axis=1)
+        return np.column_stack([norm_res, dip_res])
+
+    for p0 in starts:
 
         sol = solve(resid, p0, len(mag), robust)
         cost = float(np.mean(sol.residuals**2))

@@ -181,23 +181,31 @@ class Solution:
 
 
 def solve(resid: Callable[[np.ndarray, np.ndarray], np.ndarray], p0: np.ndarray, n_points: int,
-          robust: bool = False, reject_sigma: float = 5.0) -> Solution:
+          robust: bool = False, reject_sigma: float = 5.0,
+          prior: Callable[[np.ndarray], np.ndarray] | None = None) -> Solution:
     """Least squares over points: ``resid(p, idx)`` returns the (len(idx), k) residuals (µT) of points ``idx``.
 
     With ``robust``, a Cauchy-loss fit first finds the outliers (per-point residual norm above
     ``reject_sigma`` robust standard deviations, from the median absolute deviation); the
     final fit is plain least squares on the inliers, so its covariance is the usual
-    ``s^2 inv(J^T J)``.
+    ``s^2 inv(J^T J)``. ``prior(p)`` returns residuals in units of their prior 1-sigma
+    (a Gaussian prior); they are weighted against the points by the noise level of the
+    residuals at ``p0``.
     """
     from scipy.optimize import least_squares
 
     idx = np.arange(n_points)
     inliers = np.ones(n_points, bool)
     p = np.asarray(p0, float)
+    r0 = resid(p, idx)
+    noise = max(1.4826 * float(np.median(np.abs(r0 - np.median(r0)))), 1e-3)
+
+    def full(q, keep):
+        r = resid(q, keep).ravel()
+        return r if prior is None else np.concatenate([r, noise * prior(q)])
+
     if robust:
-        r0 = resid(p, idx)
-        scale = max(1.4826 * float(np.median(np.abs(r0 - np.median(r0)))), 1e-3)
-        sol = least_squares(lambda q: resid(q, idx).ravel(), p, loss="cauchy", f_scale=scale, x_scale="jac")
+        sol = least_squares(lambda q: full(q, idx), p, loss="cauchy", f_scale=noise, x_scale="jac")
         p = sol.x
         r = resid(p, idx)
         rn = np.linalg.norm(r, axis=1)
@@ -205,7 +213,7 @@ def solve(resid: Callable[[np.ndarray, np.ndarray], np.ndarray], p0: np.ndarray,
         sig = 1.4826 * float(np.median(np.abs(r))) if k > 1 else 1.4826 * float(np.median(np.abs(r - np.median(r))))
         inliers = rn <= reject_sigma * max(sig, 1e-6) * np.sqrt(k)
     keep = idx[inliers]
-    sol = least_squares(lambda q: resid(q, keep).ravel(), p, method="lm", x_scale="jac")
+    sol = least_squares(lambda q: full(q, keep), p, method="lm", x_scale="jac")
     r = resid(sol.x, keep)
     return Solution(sol.x, lsq_covariance(sol.jac, r.ravel()), r, inliers)
 

@@ -8,7 +8,8 @@ Entry points:
 - :func:`calibrate`: checks the input, chooses the estimator (:mod:`mag_select`) unless told,
   fits it (:mod:`mag_fit2d`, :mod:`mag_ellipsoid`, :mod:`mag_attitude`), assesses coverage
   and residuals (:mod:`mag_quality`) and the heading error against the table
-  (:mod:`mag_heading`); returns a :class:`MagCalibration`.
+  (:mod:`mag_heading`), optionally against the IGRF field (:mod:`mag_reference`); returns a
+  :class:`MagCalibration`.
 - :func:`triad_calibration`: the calibration set's ``mag`` block from a fit: ``bias`` = hard
   iron µT, ``scale_misalignment`` = ``M`` with ``I + M`` the soft-iron distortion
   (``measured = (I + M) true + bias``), ``field_norm_ut``, sigmas (NaN = not observed).
@@ -23,9 +24,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from workbench.analysis import mag_attitude, mag_ellipsoid, mag_fit2d, mag_quality, mag_select
+from workbench.analysis import mag_attitude, mag_ellipsoid, mag_fit2d, mag_quality, mag_reference, mag_select
 from workbench.analysis.mag_fit import FIELD_RANGE_UT, MagFit
 from workbench.analysis.mag_heading import HeadingEvaluation, evaluate_heading
+from workbench.analysis.mag_reference import ReferenceField
 from workbench.calset import TriadCalibration
 from workbench.errors import AnalysisError
 from workbench.model import TriadModel
@@ -72,6 +74,7 @@ class MagCalibration:
     baseline_heading: HeadingEvaluation | None
     points: MagPoints
     warnings: tuple[str, ...]
+    reference: ReferenceField | None = None
 
     def to_dict(self) -> dict:
         """JSON-ready result (SI, angles in rad unless the key says ``_deg``)."""
@@ -81,6 +84,7 @@ class MagCalibration:
                 "raw_heading": None if self.raw_heading is None else self.raw_heading.to_dict(),
                 "baseline": None if self.baseline is None else self.baseline.to_dict(),
                 "baseline_heading": None if self.baseline_heading is None else self.baseline_heading.to_dict(),
+                "reference_field": None if self.reference is None else self.reference.to_dict(),
                 "n_points": len(self.points), "warnings": list(self.warnings)}
 
 
@@ -101,15 +105,15 @@ def points_from_session(session: Session, block_deg: float = 1.0) -> MagPoints:
             continue
         m, a = df[["mx", "my", "mz"]].to_numpy(float), df[["ax", "ay", "az"]].to_numpy(float)
         if st.kind in STATIC_KINDS:
-            angle = float(df["table_angle"].mean()) if "table_angle" in df else st.table_angle
+            angle = (float(np.angle(np.mean(np.exp(1j * df["table_angle"].to_numpy(float)))))  # circular mean
+                     if "table_angle" in df else st.table_angle)
             groups = [(np.arange(len(df)), angle)]
         else:
             t = df["t"].to_numpy(float)
-            ang = df["table_angle"].to_numpy(float) if "table_angle" in df else st.table_angle + st.table_rate * (t - st.t_start)
-            ang = np.unwrap(ang)
-            block = np.floor((ang - ang[0]) / np.radians(block_deg) * np.sign(st.table_rate or 1.0)).astype(int)
-            groups = [(np.flatnonzero(block == k), None) for k in np.unique(block)]
-            groups = [(g, float(np.mean(ang[g]))) for g, _ in groups]
+            ang = np.unwrap(df["table_angle"].to_numpy(float) if "table_angle" in df
+                            else st.table_angle + st.table_rate * (t - st.t_start))
+            block = np.floor(np.abs(ang - ang[0]) / np.radians(block_deg)).astype(int)
+            groups = [(g, float(np.mean(ang[g]))) for g in (np.flatnonzero(block == k) for k in np.unique(block))]
         for g, angle in groups:
             mags.append(m[g].mean(axis=0))
             accs.append(a[g].mean(axis=0))
@@ -186,7 +190,7 @@ def _fit(method: str, points: MagPoints, down: np.ndarray | None, field_norm_ut,
 
 def calibrate(points: MagPoints, method: str = "auto", robust: bool = False, field_norm_ut: float | None = None,
               declination: float | None = None, baseline: bool = True, accel_model: TriadModel | None = None,
-              source: str = "magnetometer data") -> MagCalibration:
+              reference: ReferenceField | None = None, source: str = "magnetometer data") -> MagCalibration:
     """Calibrate a magnetometer from ``points``.
 
     Parameters
@@ -200,6 +204,8 @@ def calibrate(points: MagPoints, method: str = "auto", robust: bool = False, fie
     baseline : also fit the plain algebraic ellipsoid (3D data) for comparison
     accel_model : the accelerometer's calibration; its compensation is applied to ``points.accel``
         first (an uncalibrated accelerometer's bias tilts the gravity direction: 20 mg ~ 1.1°)
+    reference : a geomagnetic model's field at the site (:mod:`mag_reference`): the fitted norm
+        (when estimated) and dip are checked against it (warnings)
 
     The heading error is evaluated with the tilt from the calibrated accelerometer when
     ``accel_model`` is given, else from the table attitude (so that it measures the
@@ -242,8 +248,9 @@ def calibrate(points: MagPoints, method: str = "auto", robust: bool = False, fie
             quality = replace(quality, warnings=(*quality.warnings, f"plain algebraic baseline: {exc}"))
         if base is not None and head is not None:
             base_head = evaluate_heading(base.compensate(points.mag), hdown, points.attitude, known, tilt)
-    warnings = tuple(dict.fromkeys((*fit.warnings, *quality.warnings)))
-    return MagCalibration(fit, choice, quality, head, raw_head, base, base_head, points, warnings)
+    ref_notes = mag_reference.compare(fit, reference) if reference is not None else []
+    warnings = tuple(dict.fromkeys((*fit.warnings, *quality.warnings, *ref_notes)))
+    return MagCalibration(fit, choice, quality, head, raw_head, base, base_head, points, warnings, reference)
 
 
 def triad_calibration(fit: MagFit) -> TriadCalibration:

@@ -24,9 +24,9 @@ Public: :class:`Observations`, :class:`AxisGeometry`, :class:`HarmonicFit`,
 :class:`MaytagResult`, :class:`RedundantResult`, :func:`maytag_azimuth`,
 :func:`maytag_azimuth_one_axis`, :func:`fit_harmonic`, :func:`maytag`, :func:`redundant`,
 :func:`group_fits`, :func:`static_observations`, :func:`rotating_observations`,
-:func:`find_north`, :class:`NorthFinding`, :func:`earth_rate_free_series`,
-:func:`circular_mean`,
-:func:`angle_diff`, :func:`repeatability`.
+:func:`find_north`, :class:`NorthFinding`, :func:`to_result`, :func:`analyze_procedure`,
+:func:`earth_rate_free_series`, :func:`sequence_table`, :func:`pairing_table`,
+:func:`circular_mean`, :func:`angle_diff`, :func:`repeatability`.
 
 References: thesis (shared/seeds/000_...) sec. 4.2 eq. 4.1-4.6, sec. 4.4.1-4.4.3,
 tables 4.2-4.4.
@@ -91,17 +91,6 @@ class Observations:
         """Rows selected by a boolean mask or an index array."""
         return Observations(*(np.asarray(getattr(self, f))[index] for f in
                               ("t", "rate", "cos_angle", "sin_angle", "table_rate", "duration", "step", "n")))
-
-    @classmethod
-    def static(cls, angles: np.ndarray, rates: np.ndarray, t: np.ndarray, duration: np.ndarray | float,
-               steps: np.ndarray | None = None, n: np.ndarray | None = None) -> Observations:
-        """Rows of static positions at table ``angles`` (rad) with mean ``rates`` (N, 3) rad/s."""
-        angles = np.asarray(angles, float)
-        k = len(angles)
-        return cls(np.asarray(t, float), np.asarray(rates, float).reshape(k, 3), np.cos(angles), np.sin(angles),
-                   np.zeros(k), np.broadcast_to(np.asarray(duration, float), (k,)).copy(),
-                   np.arange(k) if steps is None else np.asarray(steps, int),
-                   np.ones(k, int) if n is None else np.asarray(n, int))
 
 
 def _concat(parts: list[Observations]) -> Observations:
@@ -241,7 +230,8 @@ class AxisGeometry:
         vertical = (tilt >= np.pi / 2 - max_tilt) | ~used
         if not horizontal[0]:
             raise AnalysisError(f"{where}: body x is tilted {np.degrees(tilt[0]):.2f}° from level "
-                                f"(limit {np.degrees(max_tilt):.2f}°): its azimuth is not defined; mount the unit level")
+                                f"(limit {np.degrees(max_tilt):.2f}°): its azimuth is not defined; "
+                                "mount the unit level")
         odd = ~(horizontal | vertical)
         if odd.any():
             i = int(np.argmax(odd))
@@ -485,7 +475,6 @@ def maytag(obs: Observations, geom: AxisGeometry, latitude: float, index_tol: fl
         if two_axis:
             iy = hz[1]
             psi = maytag_azimuth(np.array([d[0], d[iy]]), np.zeros(2), bool(np.sin(geom.axis_angle[iy]) > 0))
-            psi -= geom.axis_angle[0]
             amp = float(np.hypot(d[0], d[iy]))
         else:
             psi = maytag_azimuth_one_axis(2 * d[0], 0.0, latitude)[0]
@@ -497,7 +486,7 @@ def maytag(obs: Observations, geom: AxisGeometry, latitude: float, index_tol: fl
     pair_az = np.array(pair_az)
     if not two_axis:
         warnings.append(f"{where}: one level gyro axis: eq. 4.3 leaves a ±180° ambiguity (psi or -psi); "
-                        "the candidates nearest the pairs' mean are reported")
+                        "every pair is put on the first pair's branch")
         # each pair gives +-psi about its home angle; align all to the first pair's branch
         home = ang[0:2 * n_pairs:2]
         cand = np.stack([pair_az, angle_diff(-(pair_az + home), home)])
@@ -923,6 +912,9 @@ def to_result(nf: NorthFinding) -> tuple[dict, list[str]]:
     ]
     if nf.azimuth_error is not None:
         summary.append(f"error against the table's known zero azimuth: {nf.azimuth_error * 1e3:+.3g} mrad")
+    if isinstance(nf.detail, RedundantResult):
+        summary.append(f"redundant: bias {nf.detail.bias_source}; the theory is the noise floor with the bias known, "
+                       "the spread adds the bias wander over the session (thesis: thermal drift)")
     if nf.ambiguous:
         summary.append("one level axis (eq. 4.3): the azimuth may be mirrored (psi or -psi about the pair's home)")
     return res, summary

@@ -5,7 +5,7 @@ skips: a static step with motion in it, a rate step shorter than one revolution,
 detection of a position that does not fit the model (a mounting or fixture error), by
 externally studentised (leave-one-out) residuals of a weighted least-squares fit.
 
-Public: :class:`StepStats`, :func:`step_stats`, :func:`motion_in_static`, :func:`mean_variance`,
+Public: :class:`StepStats`, :class:`MeanNoise`, :func:`step_stats`, :func:`motion_in_static`, :func:`mean_variance`,
 :func:`static_mean_variance`, :func:`whole_revolutions`, :func:`whole_revolution_samples`, :func:`deleted_residual_statistics`, :func:`step_name`.
 
 Noise of a step mean is estimated by batch means (the scatter of the means of ``K`` equal
@@ -94,40 +94,49 @@ def _stats(step: StepRecord, df: pd.DataFrame, revolutions: int) -> StepStats:
                      revolutions)
 
 
-def mean_variance(signals: list[np.ndarray], fs: float) -> np.ndarray:
-    """Variance (n, 3) of the mean of each signal (N_i, 3), from a two-term noise model pooled over them.
+@dataclass(frozen=True)
+class MeanNoise:
+    """Noise of step means: ``white`` (3,) density sqrt(W), u/√Hz; ``floor`` (3,) sqrt(F), u;
+    ``variance`` (n, 3) variance of each step's mean, u^2 (u = the triad's SI unit)."""
 
-    The Allan variance of each signal is taken at ``tau1 = T/20`` and ``tau2 = T/4`` (``T`` the
-    shortest signal; non-overlapping blocks) and averaged over the signals;
-    ``AVAR(tau) = W / tau + F`` (white noise plus a flat bias-instability floor, IEEE 952) is
-    solved for ``W, F >= 0``. The variance of a mean over ``T_i`` is then ``W / T_i + F``: the
-    white part averages down, the bias wander between steps does not.
+    white: np.ndarray
+    floor: np.ndarray
+    variance: np.ndarray
+
+
+def mean_variance(signals: list[np.ndarray], fs: float) -> MeanNoise:
+    """Variance of the mean of each signal (N_i, 3), from a two-term noise model pooled over them.
+
+    ``AVAR(tau) = W / tau + F``: white noise ``W`` (from the sample-to-sample differences,
+    ``W = var(diff) / 2 / fs``) plus a flat bias-instability floor ``F`` (IEEE 952), the
+    excess of the Allan variance at ``tau = T/4`` (``T`` the shortest signal, non-overlapping
+    blocks, averaged over the signals) over the white part. ``F`` is kept where it exceeds two
+    standard errors of that Allan variance (chi-square with the pooled block-difference count;
+    2.3 % false alarms on white noise), else the noise is taken as white: a floor of about the
+    white level at ``T/4`` goes undetected in a short session (six 60-s positions). The variance of a mean over ``T_i`` is ``W / T_i + F``:
+    the white part averages down, the bias wander between steps does not. (A rate random walk
+    that grows over the whole session is not seen at ``T/4``; the fits' Birge factor and the
+    residual scatter between positions are what can reveal it.)
     """
     n_min = min(len(x) for x in signals)
-    m1, m2 = n_min // 20, n_min // 4
-    if m1 < 1:
+    m = n_min // 4
+    if m < 2:
         raise AnalysisError(f"steps of {n_min} samples are too short to estimate their noise")
-    avar = []
-    for m in (m1, m2):
-        vals, dof = [], 0
-        for x in signals:
-            blocks = x[: (len(x) // m) * m].reshape(-1, m, 3).mean(axis=1)
-            vals.append(0.5 * np.mean(np.diff(blocks, axis=0) ** 2, axis=0))
-            dof += len(blocks) - 1
-        avar.append(np.mean(vals, axis=0))
-    tau1, tau2 = m1 / fs, m2 / fs
-    a1, a2 = avar
-    w = np.maximum((a1 - a2) / (1 / tau1 - 1 / tau2), 0.0)
-    f = np.maximum(a2 - w / tau2, 0.0)
-    # keep the floor only where it stands out of the scatter of AVAR(tau2) (2 sigma, chi2 with
-    # `dof` degrees of freedom); otherwise the noise is white and the short tau estimates it best
-    f = np.where(f > 2 * a2 * np.sqrt(2.0 / max(dof, 1)), f, 0.0)
-    w = np.where(f == 0, a1 * tau1, w)
+    w = np.mean([np.diff(x, axis=0).var(axis=0) / 2.0 for x in signals], axis=0) / fs
+    vals, dof = [], 0
+    for x in signals:
+        blocks = x[: (len(x) // m) * m].reshape(-1, m, 3).mean(axis=1)
+        vals.append(0.5 * np.mean(np.diff(blocks, axis=0) ** 2, axis=0))
+        dof += len(blocks) - 1
+    tau = m / fs
+    a2 = np.mean(vals, axis=0)
+    f = a2 - w / tau
+    f = np.where(f > 2 * a2 * np.sqrt(2.0 / dof), f, 0.0)
     t = np.array([len(x) / fs for x in signals])
-    return w[None, :] / t[:, None] + f[None, :]
+    return MeanNoise(np.sqrt(w), np.sqrt(f), w[None, :] / t[:, None] + f[None, :])
 
 
-def static_mean_variance(session: Session, stats: list[StepStats], triad: str, settle_s: float = 0.0) -> np.ndarray:
+def static_mean_variance(session: Session, stats: list[StepStats], triad: str, settle_s: float = 0.0) -> MeanNoise:
     """:func:`mean_variance` of the ``triad`` ("gyro" or "accel") samples of static steps."""
     cols = GYRO if triad == "gyro" else ACCEL
     return mean_variance([_frame(session, s.step, settle_s)[cols].to_numpy(float) for s in stats],
@@ -137,36 +146,33 @@ def static_mean_variance(session: Session, stats: list[StepStats], triad: str, s
 def motion_in_static(session: Session, step: StepRecord, settle_s: float = 0.0) -> str | None:
     """A one-line reason if the static ``step`` shows motion, else None.
 
-    Motion = a 1-s block mean of the gyro that departs from the step median by more than
-    max(8 sigma of a block mean, 0.05 °/s), or a change of the accelerometer direction
-    between 1-s blocks larger than max(8 sigma, 2 mrad). Sigma is estimated from the
-    sample-to-sample differences (white noise).
+    The step is cut into 1-s blocks; motion = a change between consecutive block means of the
+    gyro larger than max(8 sigma of the change, 0.05 °/s), or of the accelerometer direction
+    larger than max(8 sigma, 2 mrad). Sigma comes from the sample-to-sample differences
+    (white noise). Slow drifts (thermal, bias instability) pass; bumps and turns do not.
     """
     df = _frame(session, step, settle_s)
-    rate_hz = session.sample_rate_hz
-    m = max(2, int(round(rate_hz)))
+    m = max(2, int(round(session.sample_rate_hz)))
     k = len(df) // m
     if k < 3:
         return None
-    for name, cols, floor in (("gyro", GYRO, MOTION_GYRO_FLOOR), ("accel", ACCEL, None)):
-        x = df[cols].to_numpy(float)
-        blocks = x[: k * m].reshape(k, m, 3).mean(axis=1)
-        sig = np.sqrt(np.diff(x, axis=0).var(axis=0) / 2.0 / m)
-        if name == "gyro":
-            dev = np.abs(blocks - np.median(blocks, axis=0))
-            lim = np.maximum(8 * sig, floor)
-            if np.any(dev > lim):
-                worst = float(np.max(dev))
-                return (f"{step_name(step)}: not static: gyro 1-s mean departs by {np.degrees(worst):.3g} °/s "
-                        f"(limit {np.degrees(lim.max()):.3g} °/s)")
-        else:
-            ref = np.median(blocks, axis=0)
-            norm = np.linalg.norm(ref)
-            ang = np.linalg.norm(np.cross(blocks / np.linalg.norm(blocks, axis=1)[:, None], ref / norm), axis=1)
-            lim = max(8 * float(np.linalg.norm(sig)) / norm, MOTION_ACCEL_FLOOR)
-            if np.any(ang > lim):
-                return (f"{step_name(step)}: not static: accelerometer direction moves by "
-                        f"{1e3 * float(ang.max()):.3g} mrad between 1-s blocks (limit {1e3 * lim:.3g} mrad)")
+    gyro = df[GYRO].to_numpy(float)
+    blocks = gyro[: k * m].reshape(k, m, 3).mean(axis=1)
+    sig = np.sqrt(np.diff(gyro, axis=0).var(axis=0) / 2.0 / m * 2.0)  # sigma of a difference of block means
+    jump = np.abs(np.diff(blocks, axis=0))
+    lim = np.maximum(8 * sig, MOTION_GYRO_FLOOR)
+    if np.any(jump > lim):
+        return (f"{step_name(step)}: not static: gyro 1-s mean jumps by {np.degrees(jump.max()):.3g} °/s "
+                f"(limit {np.degrees(lim.max()):.3g} °/s)")
+    acc = df[ACCEL].to_numpy(float)
+    blocks = acc[: k * m].reshape(k, m, 3).mean(axis=1)
+    unit = blocks / np.linalg.norm(blocks, axis=1)[:, None]
+    turn = np.linalg.norm(np.cross(unit[1:], unit[:-1]), axis=1)
+    sig_dir = np.linalg.norm(np.sqrt(np.diff(acc, axis=0).var(axis=0) / m)) / np.linalg.norm(blocks.mean(axis=0))
+    lim = max(8 * sig_dir, MOTION_ACCEL_FLOOR)
+    if np.any(turn > lim):
+        return (f"{step_name(step)}: not static: accelerometer direction moves by {1e3 * float(turn.max()):.3g} mrad "
+                f"between 1-s blocks (limit {1e3 * lim:.3g} mrad)")
     return None
 
 

@@ -28,7 +28,7 @@ sources in sec. 1.2).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -289,7 +289,8 @@ def fit_thermal_poly(temperature_c, values, sigma=None, direction=None, groups=N
     sig = np.ones_like(y) if sigma is None else np.asarray(sigma, float).reshape(y.shape)
     d = np.zeros(len(tc)) if direction is None else np.sign(np.asarray(direction, float))
     groups = np.round(tc * 2) / 2 if groups is None else np.asarray(groups)
-    axes = [ax for ax in range(3) if np.isfinite(y[:, ax]).all() and (np.isfinite(sig[:, ax]) & (sig[:, ax] > 0)).all()]
+    axes = [ax for ax in range(3)
+            if np.isfinite(y[:, ax]).all() and (np.isfinite(sig[:, ax]) & (sig[:, ax] > 0)).all()]
     warnings = [f"{quantity}: axis {'xyz'[ax]} not observed at every temperature (not fitted)"
                 for ax in range(3) if ax not in axes and np.isfinite(y[:, ax]).any()]
     n_temps = len(np.unique(np.round(tc, 1)))
@@ -299,14 +300,21 @@ def fit_thermal_poly(temperature_c, values, sigma=None, direction=None, groups=N
         raise AnalysisError(f"{quantity}: {n_temps} distinct temperature(s); a temperature model needs at least 2")
     if not axes:
         raise AnalysisError(f"{quantity}: no axis observed at every temperature")
-    both = bool((d > 0).any() and (d < 0).any())
+    shared = set(groups[d > 0]) & set(groups[d < 0])
+    both = len(shared) >= 2
+    if not both and (d > 0).any() and (d < 0).any():
+        lone = -1 if (d < 0).sum() <= (d > 0).sum() else 1
+        temps = ", ".join(f"{t:.1f}" for t in tc[d == lone])
+        warnings.append(f"{quantity}: hysteresis not observable (up and down branches share {len(shared)} "
+                        f"temperature(s)); the point(s) at {temps} °C approached from "
+                        f"{'above' if lone < 0 else 'below'} may sit half the hysteresis off the fit")
     if hysteresis == "on" and not both:
         warnings.append(f"{quantity}: hysteresis asked but the data hold one branch only")
     top = max(min(max_order, n_temps - 2), 0)
     if order is None and top < min(3, max_order):
         warnings.append(f"{quantity}: only {n_temps} distinct temperatures: orders above {top} cannot be "
                         "cross-validated")
-    cv_orders = tuple(range(max_order + 1))
+    cv_orders = tuple(range(max(max_order, order or 0) + 1))
     candidates = range(top + 1) if order is None else (order,)
     s_all = 0.5 * d
     dt = tc - t_ref_c
@@ -405,20 +413,14 @@ def _require_temp(session, steps) -> None:
 def soak_groups(session) -> list[SoakGroup]:
     """Group the session's steps: each ``soak`` step with the non-soak, non-ramp steps after it."""
     groups: list[SoakGroup] = []
-    current: list[int] | None = None
     for st in sorted(session.steps, key=lambda s: s.t_start):
         if st.kind == "soak":
-            if current is not None:
-                groups.append(SoakGroup(soak_idx, setpoint, tuple(current)))
-            soak_idx, setpoint, current = st.index, st.temperature_c, []
+            groups.append(SoakGroup(st.index, st.temperature_c, ()))
         elif st.kind == "ramp":
-            if current is not None:
-                groups.append(SoakGroup(soak_idx, setpoint, tuple(current)))
-            current = None
-        elif current is not None:
-            current.append(st.index)
-    if current is not None:
-        groups.append(SoakGroup(soak_idx, setpoint, tuple(current)))
+            groups.append(SoakGroup(-1, None, ()))  # a ramp ends the current soak group
+        elif groups and groups[-1].soak_step >= 0:
+            g = groups[-1]
+            groups[-1] = SoakGroup(g.soak_step, g.setpoint_c, (*g.steps, st.index))
     return [g for g in groups if g.steps]
 
 
@@ -440,8 +442,9 @@ def soak_points(session, triads=("gyro", "accel"), settle_tol_c_per_min: float =
 
     For each soak group the accelerometer is fitted with ``fit_accel`` on the group's static
     steps; the gyro bias with ``fit_gyro_static`` on the same steps and, when the group has
-    rate steps, the gyro scale factor with ``fit_gyro_rate`` (else not observed, NaN). The soak's temperature is the mean
-    unit temperature over its measurement steps; a soak whose unit temperature still moves
+    rate steps, the gyro scale factor with ``fit_gyro_rate`` (else not observed, NaN). The
+    soak's temperature is the mean unit temperature over its measurement steps; a soak whose
+    unit temperature still moves
     during the measurement steps (regression slope at or above ``settle_tol_c_per_min``) is
     reported in the warnings naming the step and flagged ``settled=False`` (left out of the
     fits); the soak step's own settling time (:func:`settling`) is kept for the report.
@@ -504,14 +507,8 @@ def soak_points(session, triads=("gyro", "accel"), settle_tol_c_per_min: float =
     for pts in out.values():
         for i, p in enumerate(pts):
             if p.direction == 0 and i + 1 < len(pts) and pts[i + 1].direction != 0:
-                pts[i] = _replace(p, direction=pts[i + 1].direction)
+                pts[i] = replace(p, direction=pts[i + 1].direction)
     return out, warnings
-
-
-def _replace(obj, **kw):
-    from dataclasses import replace
-
-    return replace(obj, **kw)
 
 
 @dataclass(frozen=True)
@@ -651,7 +648,8 @@ class ThermalResult:
 
 
 def fit_soaks(points: dict[str, list[SoakPoint]], t_ref_c: float = 25.0, max_order: int = MAX_ORDER,
-              order: int | None = None, hysteresis: str = "auto", include_unsettled: bool = False) -> dict[str, PolyFit]:
+              order: int | None = None, hysteresis: str = "auto",
+              include_unsettled: bool = False) -> dict[str, PolyFit]:
     """Polynomial fits of bias and (where observed) scale factor over the settled soak points.
 
     Weights are ``1 / sigma^2`` with each soak's sigma floored at the axis median.
@@ -692,6 +690,9 @@ def analyze_thermal(session, triads=("gyro", "accel"), t_ref_c: float = 25.0, ma
     warnings: list[str] = []
     points: dict[str, list[SoakPoint]] = {}
     ramps: dict[str, RampSeries] = {}
+    if not soak_groups(session) and not session.steps_of_kind("ramp"):
+        raise SessionError(f"{session.name}: no soak step followed by measurement steps and no ramp step: "
+                           "not a thermal session")
     if soak_groups(session):
         points, w = soak_points(session, triads, settle_tol_c_per_min, settle_window_s)
         warnings += w

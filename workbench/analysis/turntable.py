@@ -339,7 +339,8 @@ def fit_accel(session: Session, steps: Sequence[int] | None = None, nonlinearity
     stats, warnings = _static_stats(session, steps, settle_s, "accelerometer fit")
     f = _specific_force(session, stats)
     y = np.array([s.accel for s in stats])
-    var = static_mean_variance(session, stats, "accel", settle_s)
+    noise = static_mean_variance(session, stats, "accel", settle_s)
+    var = noise.variance
     g = session.site.gravity
     levels = [np.unique(np.round(np.abs(f[:, j]) / g, 2)) for j in range(3)]
     nl_axes = [nonlinearity != "none" and int(np.sum(lv > 0.1)) >= 2 for lv in levels]
@@ -372,23 +373,38 @@ def fit_accel(session: Session, steps: Sequence[int] | None = None, nonlinearity
         return _gauss_newton(model, [np.zeros(len(n)) for n in names], names, y[rows], vr)
 
     tilt = _position_sigma(build, position_sigma, len(stats), context)
-    if tilt > 0:
+    if tilt > 0 and position_sigma == "auto":
         warnings.append(f"{context}: positions scatter beyond the sensor noise: a tilt of {1e3 * tilt:.3g} mrad "
-                        f"({np.degrees(tilt):.2g}°) 1-sigma per position is "
-                        f"{'estimated' if position_sigma == 'auto' else 'assumed'} (hand-made or loose fixture)")
+                        f"({np.degrees(tilt):.2g}°) 1-sigma per position is estimated (hand-made or loose fixture)")
 
     def residual_of(fit, rows):
         return lambda i: f"{1e3 * np.linalg.norm(_accel_after(fit, y[i:i + 1], f[i:i + 1])) / 9.80665:.3g} mg"
 
     fit, used, outliers, w2 = _fit_with_misfits(build, stats, y, position_var(tilt), context, residual_of)
     warnings += w2
-    result = _accel_result(fit)
+    result = _with_bias_floor(_accel_result(fit), noise)
     comp = result.model().compensate(y)
     return _replace_fit(result, residuals=_residual_frame(stats, f, y, comp, position_var(tilt) * fit.scale, used),
                         outliers=tuple(stats[i].step.index for i in outliers), warnings=tuple(warnings),
                         chi2_reduced=fit.chi2 / fit.dof if fit.dof else float("nan"), dof=fit.dof,
                         notes={"gravity_m_s2": g, "positions": int(used.sum()), "position_sigma_rad": tilt,
+                               **_noise_notes(noise),
                                "nonlinearity_axes": [AXES[j] for j in range(3) if nl_axes[j]]})
+
+
+def _with_bias_floor(fit: TriadFit, noise) -> TriadFit:
+    """The fit with the bias-wander floor added to the bias variance.
+
+    The fit treats the floor as independent from step to step, but bias instability wanders
+    slowly and is largely common to all steps: the session's mean bias departs from the
+    unit's long-term bias by about the floor, whatever the number of positions.
+    """
+    return replace(fit, bias_sigma=np.sqrt(fit.bias_sigma**2 + noise.floor**2))
+
+
+def _noise_notes(noise) -> dict:
+    """Noise model of the step means for ``notes``: white density (SI/√Hz) and bias-wander floor (SI)."""
+    return {"noise_white_density": noise.white.tolist(), "noise_floor": noise.floor.tolist()}
 
 
 def _position_sigma(build, position_sigma: float | str, n: int, context: str) -> float:
@@ -451,7 +467,8 @@ def fit_gyro_static(session: Session, steps: Sequence[int] | None = None, earth_
     ref = (np.array([session.attitude(s.step, _angle(s)).inv().apply(w_ie) for s in stats]) @ gain.T if use_earth
            else np.zeros((len(stats), 3)))
     y = np.array([s.gyro for s in stats])
-    var = static_mean_variance(session, stats, "gyro", settle_s)
+    noise = static_mean_variance(session, stats, "gyro", settle_s)
+    var = noise.variance
 
     def build(rows: np.ndarray) -> _AxisFit:
         fr = f[rows]
@@ -471,11 +488,11 @@ def fit_gyro_static(session: Session, steps: Sequence[int] | None = None, earth_
 
     fit, used, outliers, w2 = _fit_with_misfits(build, stats, y, var, context, residual_of)
     warnings += w2
-    result = _gyro_static_result(fit)
+    result = _with_bias_floor(_gyro_static_result(fit), noise)
     if np.isnan(result.g_sensitivity_sigma).any():
         warnings.append(f"{context}: g-sensitivity partly not observed by these positions (NaN sigma)")
     comp = result.model().compensate(y, specific_force=f)
-    notes: dict = {"positions": int(used.sum())}
+    notes: dict = {"positions": int(used.sum()), **_noise_notes(noise)}
     worst_sigma = float(np.nanmax(result.bias_sigma))
     if use_earth:
         notes["earth_rate"] = "modelled: Earth-rate projection subtracted at each position"
@@ -541,7 +558,8 @@ def fit_gyro_rate(session: Session, steps: Sequence[int] | None = None,
     w = np.array([rate_reference(session, s) for s in stats])
     w_nominal = np.array([np.asarray(s.step.mount).T @ np.array([0.0, 0.0, s.step.table_rate]) for s in stats])
     y = np.array([s.gyro for s in stats])
-    var = mean_variance([_rate_error_signal(session, s.step) for s in stats], session.sample_rate_hz)
+    noise = mean_variance([_rate_error_signal(session, s.step) for s in stats], session.sample_rate_hz)
+    var = noise.variance
     mounts = list(dict.fromkeys(_mount_key(s.step.mount) for s in stats))
     onehot = np.array([[float(_mount_key(s.step.mount) == m) for m in mounts] for s in stats])
 
@@ -595,6 +613,7 @@ def fit_gyro_rate(session: Session, steps: Sequence[int] | None = None,
     offsets, off_cov = _offsets(fit, len(mounts))
     f_m = np.array([np.reshape(k, (3, 3)).T @ np.array([0.0, 0.0, -session.site.gravity]) for k in mounts])
     bias, bias_s, g, g_s = _bias_from_offsets(offsets, off_cov, f_m)
+    bias_s = np.sqrt(bias_s**2 + noise.floor**2)
     result = TriadFit("gyro", bias, m, n[:, 0], g, bias_s, m_s, n_s[:, 0], g_s, asym[:, 0], asym_s[:, 0])
     off_rows = onehot @ offsets
     comp = TriadModel(np.zeros(3), m, n[:, 0]).compensate(y - off_rows - asym[:, 0] * np.abs(w))
@@ -603,7 +622,7 @@ def fit_gyro_rate(session: Session, steps: Sequence[int] | None = None,
              "revolutions": [s.revolutions for s in stats]}
     if np.isnan(bias_s).all():
         notes["bias"] = "not observed: the rate steps' mounts cannot separate bias from g-sensitivity"
-    notes["position_sigma_rad"] = tilt
+    notes.update({"position_sigma_rad": tilt, **_noise_notes(noise)})
     return _replace_fit(result, residuals=_residual_frame(stats, w, y, comp, position_var(tilt) * fit.scale, used),
                         outliers=tuple(stats[i].step.index for i in outliers), warnings=tuple(warnings),
                         chi2_reduced=fit.chi2 / fit.dof if fit.dof else float("nan"), dof=fit.dof, notes=notes)

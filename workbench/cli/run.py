@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from contextlib import contextmanager
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -42,6 +43,21 @@ def _tracker(bar: Progress, name: str):
     def progress(i: int, n: int, rec) -> None:
         bar.update(task, total=n, completed=i + 1, step=f"{rec.kind} {rec.label}".strip())
     return progress
+
+
+@contextmanager
+def _interruptible(session_dir: Path):
+    """Turn Ctrl-C during a recording into a clean stop that says how to resume."""
+    try:
+        yield
+    except KeyboardInterrupt:
+        import json as _json
+
+        manifest = session_dir / "session.json"
+        done = len(_json.loads(manifest.read_text())["steps"]) if manifest.exists() else 0
+        err.print(f"stopped: {done} step(s) complete and readable in {session_dir}; the rig was made safe "
+                  f"(table stopped, chamber to its safe setpoint). Continue with: workbench run --resume {session_dir}")
+        raise typer.Exit(130) from None
 
 
 def _print_sequence(seq, limit: int = 12) -> None:
@@ -95,7 +111,7 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
 
     store = None if no_store or dry_run else Store()
     if resume is not None:
-        with _progress_bar() as bar:
+        with _interruptible(resume), _progress_bar() as bar:
             session = resume_procedure(resume, _tracker(bar, "resume"))
         proc = procedure(session.procedure)
         _analyse_and_report(proc, session, resume.parent if resume.name == "session" else resume, store, calibration)
@@ -132,7 +148,7 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
     cal = _load_calibration(calibration)
     if cal is None and _needs_cal(proc):
         cal = _calibrate_first(spec, truth, cfg, seed, out_dir)
-    with _progress_bar() as bar:
+    with _interruptible(out_dir / "session"), _progress_bar() as bar:
         session = record_procedure(proc, spec, truth, cfg, seed, out_dir / "session", options, _tracker(bar, proc.NAME))
     _analyse_and_report(proc, session, out_dir, store, cal)
 

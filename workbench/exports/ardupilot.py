@@ -63,8 +63,9 @@ def _inertial(calset: CalibrationSet, triad: str, dropped: list[str], tcal: dict
         about35 = shift_polynomial(coeffs, TEMP_REFERENCE_C - t_ref)
         tcal.setdefault("range", (t_min, t_max))
         if tcal["range"] != (t_min, t_max):
+            kept = f"{tcal['range'][0]:.1f}..{tcal['range'][1]:.1f}"
             dropped.append(f"{triad}: valid range {t_min:.1f}..{t_max:.1f} °C differs from the other triad's; "
-                           f"ArduPilot has one INS_TCAL1_TMIN/TMAX (kept {tcal['range'][0]:.1f}..{tcal['range'][1]:.1f})")
+                           f"ArduPilot has one INS_TCAL1_TMIN/TMAX (kept {kept})")
         rows += [(f"INS_TCAL1_{key}{k}_{a}", about35[i, k] * COEFF_SCALE) for k in (1, 2, 3)
                  for i, a in enumerate("XYZ")]
         rows.append((caltemp_name, t_cal))

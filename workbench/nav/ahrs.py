@@ -36,7 +36,7 @@ from scipy.spatial.transform import Rotation
 from workbench.earth import earth_rate_ned
 from workbench.errors import AnalysisError
 from workbench.nav.compensate import ImuSamples, ProcessNoise
-from workbench.nav.strapdown import BlockPropagator, coarse_level, euler_rph, from_rph, sequential_update
+from workbench.nav.strapdown import BlockPropagator, coarse_level, euler_rph, from_rph, sequential_update, with_previous
 
 
 @dataclass(frozen=True)
@@ -91,9 +91,17 @@ def mag_white_noise(mag: np.ndarray) -> np.ndarray:
 
 
 def initial_attitude(samples: ImuSamples, declination: float, n: int) -> np.ndarray:
-    """Body-to-NED DCM (3, 3) from the first ``n`` samples: accelerometer levelling, magnetic heading."""
-    roll, pitch = coarse_level(samples.accel[:n])
-    m_level = from_rph(roll, pitch, 0.0).apply(samples.mag[:n].mean(axis=0))
+    """Body-to-NED DCM (3, 3) one sample before the first (where the filters start), from the first ``n``.
+
+    Roll and pitch from accelerometer levelling, heading from the tilt-compensated magnetometer.
+
+    The accelerometer and magnetometer samples are rotated into the first sample's body frame
+    with the integrated gyros before averaging, so the unit may already be turning.
+    """
+    rel = BlockPropagator(n, samples.dt, np.zeros(3)).propagate(np.eye(3), with_previous(samples.gyro, 0, n))
+    f0, m0 = np.einsum("nij,knj->ki", rel, np.stack([samples.accel[:n], samples.mag[:n]])) / n
+    roll, pitch = coarse_level(f0)
+    m_level = from_rph(roll, pitch, 0.0).apply(m0)
     heading = declination - np.arctan2(m_level[1], m_level[0])
     return from_rph(roll, pitch, heading).as_matrix()
 
@@ -127,7 +135,7 @@ def _run(samples: ImuSamples, latitude: float, config: AhrsConfig, correct, name
     dtheta = np.zeros(3)
     out_t, out_c, out_d, out_b, out_s = [], [], [], [], []
     for i0 in range(0, len(samples) - n_blk + 1, n_blk):
-        att = prop.propagate(c, samples.gyro[i0:i0 + n_blk] - bg, dtheta)
+        att = prop.propagate(c, with_previous(samples.gyro, i0, i0 + n_blk) - bg, dtheta)
         z, fn, mh = _measure(att, samples.accel[i0:i0 + n_blk], samples.mag[i0:i0 + n_blk], config.declination)
         dtheta, dbg, sig = correct(z, att.mean(axis=0), fn, mh)
         c = att[-1]  # dtheta is applied at the start of the next block
@@ -170,7 +178,7 @@ def kalman(samples: ImuSamples, noise: ProcessNoise, latitude: float, config: Ah
     heading ``sigma_m / (|m_h| sqrt(n))`` with ``sigma_m`` the magnetometer white noise
     (``mag_noise_ut``, default :func:`mag_white_noise` of the samples), each with its floor.
     """
-    n_blk = max(1, int(round(config.update_interval_s / samples.dt)))
+    n_blk, _ = _check(samples, config)
     T = n_blk * samples.dt
     w_ie = earth_rate_ned(latitude)
     sig_m = float(np.mean(mag_white_noise(samples.mag) if mag_noise_ut is None else mag_noise_ut))

@@ -11,7 +11,7 @@ has the exact solution ``C(t) = Exp(-w_ie t) C(0) prod_k Exp(w_k dt)``: the Eart
 rotation of the navigation frame, the gyro term a product of body increments, so a block is
 propagated with one prefix product (log2 n vectorised compositions) instead of a Python loop.
 
-Public: :class:`BlockPropagator`, :func:`coarse_level`, :func:`from_rph`, :func:`euler_rph`,
+Public: :class:`BlockPropagator`, :func:`with_previous`, :func:`coarse_level`, :func:`from_rph`, :func:`euler_rph`,
 :func:`attitude_errors`, :func:`rotation_error_ned`, :func:`gain_weight`, :func:`sequential_update`.
 
 References: thesis (shared/seeds/000_...) eq. 3.6, 3.38-3.45, 3.54-3.56, 3.58-3.60;
@@ -46,20 +46,23 @@ class BlockPropagator:
         self.earth = Rotation.from_rotvec(-np.outer(np.arange(1, n + 1) * dt, earth_rate_ned)).as_matrix()
 
     def propagate(self, c0: np.ndarray, omega_b: np.ndarray, correction_ned: np.ndarray | None = None) -> np.ndarray:
-        """DCMs (n, 3, 3) after each sample, from ``c0`` (3, 3) at the block start.
+        """DCMs (n, 3, 3) at the block's ``n`` sample times, from ``c0`` (3, 3) one sample earlier.
 
-        ``omega_b`` (n, 3) rad/s: bias-corrected body rates w.r.t. inertial space, each constant
-        over its sample interval; the last matrix is the attitude at the block end.
+        ``omega_b`` (n + 1, 3) rad/s: bias-corrected body rates w.r.t. inertial space at the
+        sample before the block and at the block's samples; each interval turns by the
+        trapezoidal increment ``(w[k-1] + w[k]) dt / 2`` (the rates are instantaneous samples).
+        The last matrix is the attitude at the block's last sample.
         ``correction_ned`` (3,) rad, optional: a filter correction applied first, as
         ``Exp(correction) c0`` (folded into the same scipy call as the gyro increments).
         """
-        rotvec = np.asarray(omega_b) * self.dt
+        w = np.asarray(omega_b)
+        rotvec = 0.5 * (w[:-1] + w[1:]) * self.dt
         if correction_ned is not None:
             rotvec = np.vstack([c0.T @ correction_ned, rotvec])  # Exp(e) c0 = c0 Exp(c0^T e)
         inc = _prefix_product(Rotation.from_rotvec(rotvec).as_matrix())
         if correction_ned is not None:
             inc = inc[1:]
-        return self.earth[: len(omega_b)] @ (c0 @ inc)
+        return self.earth[: len(w) - 1] @ (c0 @ inc)
 
 
 def coarse_level(accel: np.ndarray) -> tuple[float, float]:
@@ -124,13 +127,15 @@ def gain_weight(mu: float, c0: float, c1: float) -> float:
 
 
 def sequential_update(P: np.ndarray, H: np.ndarray, z: np.ndarray, r: np.ndarray,
-                      scaling: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                      scaling: tuple[float, float] | None = None,
+                      unscaled: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Kalman measurement update, one scalar measurement at a time (diagonal R).
 
     ``P`` (n, n) prior covariance; ``H`` (m, n); ``z`` (m,) innovations of the error state
     (measurement minus prediction at zero error); ``r`` (m,) variances. With ``scaling =
     (c0, c1)`` each gain is scaled by :func:`gain_weight` of its normalised innovation
-    (paper 001 eq. 46). The covariance uses the Joseph form, valid for any (scaled) gain.
+    (paper 001 eq. 46), except the rows where ``unscaled`` (m,) is True. The covariance uses
+    the Joseph form, valid for any (scaled) gain.
     Returns the posterior covariance, the error-state estimate (n,) and the weights (m,).
     """
     n = P.shape[0]
@@ -148,10 +153,15 @@ def sequential_update(P: np.ndarray, H: np.ndarray, z: np.ndarray, r: np.ndarray
         s = float(h @ ph) + r[i]
         innov = z[i] - h @ dx
         gain = ph / s
-        if scaling is not None:
+        if scaling is not None and not (unscaled is not None and unscaled[i]):
             weights[i] = gain_weight(innov / np.sqrt(s), *scaling)
             gain = gain * weights[i]
         dx = dx + gain * innov
         ikh = eye - np.outer(gain, h)
         P = ikh @ P @ ikh.T + r[i] * np.outer(gain, gain)
     return 0.5 * (P + P.T), dx, weights
+
+
+def with_previous(x: np.ndarray, i0: int, i1: int) -> np.ndarray:
+    """Rows ``i0 - 1 .. i1 - 1`` of ``x`` (the sample before a block and the block), repeating row 0 at the start."""
+    return x[max(i0 - 1, 0):i1] if i0 > 0 else np.vstack([x[:1], x[:i1]])

@@ -49,7 +49,7 @@ from scipy.spatial.transform import Rotation
 from workbench.earth import earth_rate_ned, gravity_ned
 from workbench.errors import AnalysisError
 from workbench.nav.compensate import ImuSamples, ProcessNoise
-from workbench.nav.strapdown import coarse_level, euler_rph, from_rph, BlockPropagator, sequential_update
+from workbench.nav.strapdown import coarse_level, euler_rph, from_rph, BlockPropagator, sequential_update, with_previous
 
 N_STATES = 15
 P, V, A, BA, BG = (slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), slice(12, 15))
@@ -70,7 +70,10 @@ class ZuptConfig:
     ``zarupt_window_s`` the moving-average length of eq. 40; ``gain_scaling`` with ``c0``, ``c1``
     (eq. 46-47; the paper's c1 = 6, but c0 = 3 rather than its 1: with c0 = 1 a third of
     consistent innovations lose gain and the bias estimates lag); pseudo-measurement 1-sigma noises; bias priors (1-sigma,
-    per axis or scalar); ``heading_sigma`` the external heading's 1-sigma, rad.
+    per axis or scalar); ``heading_sigma`` the external heading's 1-sigma, rad;
+    ``max_rejections``: a measurement rejected (weight 0) that many corrections in a row is
+    taken unscaled at the next one, since the unit is known to be at rest (without this, one
+    knock would leave the mechanised velocity beyond c1 for good and the filter would diverge).
     """
 
     level_s: float = 5.0
@@ -86,6 +89,7 @@ class ZuptConfig:
     gyro_bias_prior: float | tuple = 1e-2
     accel_bias_prior: float | tuple = 0.1
     heading_sigma: float = np.radians(0.1)
+    max_rejections: int = 3
 
     def __post_init__(self) -> None:
         unknown = set(self.measurements) - set(MEASUREMENTS)
@@ -107,7 +111,9 @@ class ZuptResult:
     ``drift_velocity`` (E,) m/s and ``drift_attitude`` (E,) rad: how far the free mechanisation
     moved from the frozen solution over the interval before each correction; ``weights``
     (E, m) the gain scale factors of eq. 47; ``attitude`` the body-to-NED Rotation (E,);
-    ``initial_rph`` the frozen roll, pitch, heading; ``t_start`` the EKF start time, s.
+    ``initial_rph`` the frozen roll, pitch, heading; ``t_start`` the EKF start time, s;
+    ``drift_noise`` (m/s, rad) the 1-sigma norms of the velocity and attitude that white
+    accelerometer and gyro noise alone accumulate over one interval.
     """
 
     t: np.ndarray
@@ -126,15 +132,20 @@ class ZuptResult:
     initial_rph: np.ndarray
     t_start: float
     measurements: tuple[str, ...]
+    drift_noise: tuple[float, float]
 
-    def convergence_time(self, velocity_tol: float = 0.01, attitude_tol: float = np.radians(0.05)) -> float | None:
+    def convergence_time(self, velocity_tol: float | None = None, attitude_tol: float | None = None) -> float | None:
         """Time (s from the EKF start) after which the free mechanisation stays at rest.
 
         The thesis' criterion ("until the INS indicates itself to be at rest and non-rotating"):
         from then on, over every interval before a correction, the velocity grows by less than
-        ``velocity_tol`` m/s and the attitude moves by less than ``attitude_tol`` rad. None if never.
+        ``velocity_tol`` m/s and the attitude moves by less than ``attitude_tol`` rad. By default
+        5x ``drift_noise`` (the 1-sigma norm of what white VRW / ARW alone move in one
+        interval), so "at rest" means "no drift beyond the sensor noise". None if never.
         """
-        ok = (self.drift_velocity < velocity_tol) & (self.drift_attitude < attitude_tol)
+        v_tol = 5.0 * self.drift_noise[0] if velocity_tol is None else velocity_tol
+        a_tol = 5.0 * self.drift_noise[1] if attitude_tol is None else attitude_tol
+        ok = (self.drift_velocity < v_tol) & (self.drift_attitude < a_tol)
         if not ok[-1]:
             return None
         bad = np.nonzero(~ok)[0]
@@ -223,12 +234,13 @@ def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: fl
     e_cor_inv = e_cor.inv()
     n_avg = max(1, int(round(config.zarupt_window_s / dt)))
     use = config.measurements
+    rejected = None  # consecutive rejections per measurement row
     hist = {k: [] for k in ("t", "c", "rph_sig", "pos", "vel", "ba", "bas", "bg", "bgs", "dv", "da", "w")}
     for k in range(n_epochs):
         i0 = n_level + k * n_blk
         blk = samples.slice(i0, i0 + n_blk)
         # -- predictor / integrator (eq. 3.42-3.48), vectorised over the interval ---------------
-        att = prop.propagate(c, blk.gyro - bg)
+        att = prop.propagate(c, with_previous(samples.gyro, i0, i0 + n_blk) - bg)
         a_n = np.einsum("nij,nj->ni", att, blk.accel - ba) + g_n
         vel_k = e_cor.apply(vel + np.cumsum(e_cor_inv.apply(a_n), axis=0) * dt)
         v_prev = np.vstack([vel, vel_k[:-1]])
@@ -265,7 +277,11 @@ def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: fl
             z.append(-(w_avg - c.T @ w_ie))  # body-frame form of eq. 38: R diagonal
             r.append(noise.gyro_white ** 2 / (n_avg * dt))
         H, zv, rv = np.vstack(rows), np.concatenate(z), np.concatenate(r)
-        Pm, dx, weights = sequential_update(Pm, H, zv, rv, (config.c0, config.c1) if config.gain_scaling else None)
+        if rejected is None:
+            rejected = np.zeros(len(zv), int)
+        Pm, dx, weights = sequential_update(Pm, H, zv, rv, (config.c0, config.c1) if config.gain_scaling else None,
+                                            rejected >= config.max_rejections)
+        rejected = np.where(weights == 0.0, rejected + 1, 0)
         # -- feedback (eq. 3.61-3.67) -------------------------------------------------------------
         pos, vel = pos + dx[P], vel + dx[V]
         c = Rotation.from_rotvec(dx[A]).as_matrix() @ c
@@ -287,4 +303,6 @@ def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: fl
     att = Rotation.from_matrix(arr["c"])
     return ZuptResult(arr["t"], euler_rph(att), arr["rph_sig"], arr["pos"], arr["vel"], arr["ba"], arr["bas"],
                       arr["bg"], arr["bgs"], arr["dv"], arr["da"], np.array(hist["w"]), att,
-                      np.array([roll0, pitch0, heading]), float(samples.t[n_level]), tuple(use))
+                      np.array([roll0, pitch0, heading]), float(samples.t[n_level]), tuple(use),
+                      (float(np.linalg.norm(noise.accel_white) * np.sqrt(n_blk * dt)),
+                       float(np.linalg.norm(noise.gyro_white) * np.sqrt(n_blk * dt))))

@@ -126,6 +126,19 @@ class SimRig:
                             dict(planned.extra))
         return samples, record
 
+    # -- hook for the hardware-in-the-loop simulator (workbench/drivers/hil.py) -----------
+    def advance(self, rate_profile: np.ndarray, new_fixture_error: bool = False) -> pd.DataFrame:
+        """Simulate ``len(rate_profile)`` samples at the current mount (step label -1).
+
+        ``rate_profile``: table rate rad/s per sample; ``new_fixture_error`` draws a fresh
+        fixture/positioning error (as at the start of a step) that is kept until the next draw.
+        Returns the samples with the true table angle and rate; updates :attr:`state`.
+        """
+        if new_fixture_error or not hasattr(self, "_hil_error"):
+            self._hil_error = self._fixture_error()
+        rates = np.asarray(rate_profile, float)
+        return self._segment(len(rates), -1, self.state.mount, rate_profile=rates, error=self._hil_error)
+
     # -- motion ----------------------------------------------------------------------
     def _fixture_error(self) -> Rotation:
         sigma = self.config.turntable.positioning_error
@@ -265,3 +278,8 @@ def _move(delta: float, max_rate: float, accel: float, fs: float) -> np.ndarray:
 
 def _wrap_pi(a: float) -> float:
     return float((a + np.pi) % (2 * np.pi) - np.pi)
+
+
+move_profile = _move  # public names for the real-rig drivers and the hardware-in-the-loop simulator
+ramp_profile = _ramp_rate
+wrap_pi = _wrap_pi

@@ -1,0 +1,127 @@
+"""Allan deviation speed: in-memory kernel vs allantools, and streaming vs in-memory.
+
+1. Octave-tau overlapping ADEV of ``--n`` samples x 3 axes (default 1e7): the workbench (all
+   axes in one call) against allantools ``oadev`` called per axis; prints both times, the
+   ratio and the largest relative difference of the numbers.
+2. Streaming: writes a ``--stream-n``-sample single-channel Parquet file (default 1e9, 8 GB;
+   row groups of 1M), then computes its octave OADEV with
+   :func:`workbench.analysis.allan_stream.stream_deviation` in a child process and reports the
+   child's peak RSS and throughput, against the in-memory path on ``--memory-n`` samples
+   (default min(stream-n, 1e8)) also in a child process.
+
+Run: ``python benchmarks/allan_speed.py [--n 1e7] [--stream-n 1e9] [--memory-n 1e8] [--dir /tmp]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+RATE = 100.0
+
+
+def bench_in_memory(n: int) -> None:
+    import allantools
+
+    from workbench.analysis.allan import deviation
+
+    rng = np.random.default_rng(1)
+    y = 1e-3 * rng.standard_normal((n, 3)) + 1e-7 * np.cumsum(rng.standard_normal((n, 3)), axis=0)
+    deviation(y[:10_000], RATE)  # compile the kernels (cached on disk after the first run)
+    t0 = time.perf_counter()
+    curve = deviation(y, RATE, "oadev", "octave")
+    t_wb = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    ref = [allantools.oadev(np.ascontiguousarray(y[:, c]), RATE, "freq", "octave")[1] for c in range(3)]
+    t_at = time.perf_counter() - t0
+    diff = max(float(np.max(np.abs(curve.dev[:, c] / ref[c] - 1))) for c in range(3))
+    print(f"octave OADEV, {n:.3g} samples x 3 axes ({len(curve.tau)} taus)")
+    print(f"  workbench : {t_wb:7.3f} s  ({3 * n / t_wb / 1e6:6.1f} M samples/s)")
+    print(f"  allantools: {t_at:7.3f} s  ({3 * n / t_at / 1e6:6.1f} M samples/s, per axis)")
+    print(f"  ratio {t_at / t_wb:.1f}x, max relative difference {diff:.2e}")
+
+
+def write_parquet(path: Path, n: int, chunk: int = 1 << 20) -> None:
+    """``n`` samples of white + random-walk rate noise in column ``gx``, row groups of ``chunk``."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    rng = np.random.default_rng(2)
+    walk = 0.0
+    schema = pa.schema([("gx", pa.float64())])
+    with pq.ParquetWriter(path, schema, compression="none") as w:
+        for start in range(0, n, chunk):
+            k = min(chunk, n - start)
+            steps = 1e-7 * rng.standard_normal(k)
+            y = 1e-3 * rng.standard_normal(k) + walk + np.cumsum(steps)
+            walk = float(walk + steps.sum())
+            w.write_table(pa.table({"gx": y}, schema=schema), row_group_size=chunk)
+
+
+_CHILD = """
+import json, resource, sys, time
+import numpy as np
+mode, path, n = sys.argv[1], sys.argv[2], int(sys.argv[3])
+from workbench.analysis.allan import deviation
+from workbench.analysis.allan_stream import stream_deviation
+deviation(np.random.default_rng(0).standard_normal(10_000), 100.0)
+t0 = time.perf_counter()
+if mode == "stream":
+    c = stream_deviation(path, ["gx"], 100.0, "oadev", "octave", tmp_dir=sys.argv[4])
+else:
+    import pyarrow.parquet as pq
+    y = pq.read_table(path, columns=["gx"]).column("gx").to_numpy()[:n]
+    c = deviation(y, 100.0, "oadev", "octave")
+dt = time.perf_counter() - t0
+print(json.dumps({"s": dt, "n": c.n_samples, "rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+                  "dev": c.dev[:, 0].tolist()}))
+"""
+
+
+def _child(mode: str, path: Path, n: int, tmp: Path) -> dict:
+    res = subprocess.run([sys.executable, "-c", _CHILD, mode, str(path), str(n), str(tmp)], capture_output=True,
+                         text=True, check=True)
+    return json.loads(res.stdout.strip().splitlines()[-1])
+
+
+def bench_stream(n: int, memory_n: int, directory: Path) -> None:
+    with tempfile.TemporaryDirectory(dir=directory, prefix="allan-bench-") as tmp:
+        big, small = Path(tmp) / "big.parquet", Path(tmp) / "small.parquet"
+        t0 = time.perf_counter()
+        write_parquet(big, n)
+        print(f"streaming: wrote {n:.3g} samples ({big.stat().st_size / 1e9:.2f} GB) in {time.perf_counter() - t0:.0f} s")
+        s = _child("stream", big, n, Path(tmp))
+        write_parquet(small, memory_n)
+        m = _child("memory", small, memory_n, Path(tmp))
+        sm = _child("stream", small, memory_n, Path(tmp))
+        diff = float(np.max(np.abs(np.array(sm["dev"]) / np.array(m["dev"]) - 1)))
+        print(f"  stream {n:.3g}: {s['s']:7.1f} s, {n / s['s'] / 1e6:6.1f} M samples/s, peak RSS {s['rss_mb']:.0f} MB")
+        print(f"  memory {memory_n:.3g}: {m['s']:7.1f} s, {memory_n / m['s'] / 1e6:6.1f} M samples/s, "
+              f"peak RSS {m['rss_mb']:.0f} MB (incl. reading the file)")
+        print(f"  stream {memory_n:.3g}: {sm['s']:7.1f} s, peak RSS {sm['rss_mb']:.0f} MB, "
+              f"max relative difference to in-memory {diff:.2e}")
+        print(f"  throughput ratio in-memory / streaming: {(memory_n / m['s']) / (n / s['s']):.2f}")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=float, default=1e7, help="samples per axis for the allantools comparison")
+    ap.add_argument("--stream-n", type=float, default=1e9, help="samples of the streamed Parquet file (0: skip)")
+    ap.add_argument("--memory-n", type=float, default=None, help="samples of the in-memory comparison run")
+    ap.add_argument("--dir", type=Path, default=Path(tempfile.gettempdir()), help="folder for the temporary files")
+    args = ap.parse_args()
+    if args.n > 0:
+        bench_in_memory(int(args.n))
+    if args.stream_n > 0:
+        bench_stream(int(args.stream_n), int(args.memory_n or min(args.stream_n, 1e8)), args.dir)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,61 @@
+"""Allan variance: record a static hold on the simulated rig (or pick a recorded session), then show
+the ADEV figure with its 95 % bands and the IEEE 952 noise terms in lab units.
+
+Everything is computed by the library (``procedures/allan.py``); this page only asks and shows.
+"""
+
+import pandas as pd
+import streamlit as st
+
+from dashboard import common
+from workbench.registry import procedure
+
+TITLE = "Allan variance"
+PROC = procedure("allan")
+
+
+def _simulated():
+    """Grade, duration, temperature and seed; records in memory and analyses."""
+    from workbench.sim import simulate
+
+    left, right = st.columns(2)
+    with left:
+        grade = common.grade_picker(key="allan.grade")
+        seed = int(st.number_input("Seed", value=1, min_value=0, step=1, key="allan.seed"))
+    with right:
+        minutes = st.number_input("Hold duration (min)", value=30.0, min_value=2.0, max_value=720.0, step=10.0,
+                                  key="allan.minutes")
+        temperature = st.number_input("Chamber setpoint (°C)", value=25.0, min_value=-40.0, max_value=85.0,
+                                      key="allan.temp")
+        soak = st.checkbox("Soak before the hold", value=False, key="allan.soak")
+    if grade is None or not st.button("Run on the simulated rig", type="primary", key="allan.run"):
+        return None
+    with st.spinner("recording and analysing..."):
+        seq = PROC.sequence(common.load_spec(grade), duration_s=float(minutes) * 60.0,
+                            temperature_c=float(temperature), soak=soak)
+        session, _ = simulate(seq, grade, seed=seed)
+        return PROC.analyze(session)
+
+
+def main() -> None:
+    st.title(TITLE)
+    st.caption("Overlapping Allan deviation with 95 % chi-squared intervals (Greenhall EDF), IEEE Std 952 "
+               "noise terms with model selection; 'not observed' terms show the upper bound the record allows.")
+    source = st.radio("Data", ["Simulated rig", "Recorded session"], horizontal=True, key="allan.source")
+    result = None
+    with common.guarded("allan", catch_all=True):
+        result = _simulated() if source == "Simulated rig" else common.result_picker(PROC.NAME, key="allan.pick")
+    if result is not None:
+        st.session_state["allan.result"] = result
+    result = st.session_state.get("allan.result")
+    if result is None:
+        return
+    for w in result.warnings:
+        st.warning(w)
+    st.pyplot(PROC.figures(result)["adev"])
+    st.subheader("Noise terms (lab units, 95 % intervals)")
+    st.dataframe(pd.DataFrame(PROC.noise_terms_lab(result)), hide_index=True, use_container_width=True)
+    st.text("\n".join(result.summary))
+
+
+main()

@@ -1,0 +1,82 @@
+"""Navigation: replay a session through the ZUPT alignment or the AHRS, raw vs calibrated.
+
+Library calls only: runs are ``workbench run`` (``common.start_run``; on the simulated rig it
+calibrates the unit first), the analysis is the procedure's ``analyze`` with a calibration set
+from the store, the figures its ``figures``. Numbers in lab units (°, mm/s, °/h), raw beside
+calibrated.
+"""
+
+import pandas as pd
+import streamlit as st
+
+from dashboard import common
+
+TITLE = "Navigation"
+PROCEDURES = {"zupt-alignment": "ZUPT fine alignment (thesis ch. 3)", "ahrs-table": "AHRS on the table (paper 004)"}
+
+
+def numbers(result) -> pd.DataFrame:
+    """Raw and calibrated figures of a zupt-alignment or ahrs-table result, lab units."""
+    rows = []
+    stat = "RMS" if result.procedure == "ahrs-table" else "worst position, final"
+    for key, label in (("roll_error_deg", "roll error"), ("pitch_error_deg", "pitch error"),
+                       ("heading_error_deg", "heading error")):
+        rows.append((f"{label} ({stat})", *(f"{result.result[m][key]:+.3f} °" for m in ("raw", "calibrated"))))
+    v = [result.result[m]["velocity_error_mps"] for m in ("raw", "calibrated")]
+    rows.append(("NED velocity at the end", *("—" if x is None else f"{x * 1e3:.2f} mm/s" for x in v)))
+    c = [result.result[m]["convergence_time_s"] for m in ("raw", "calibrated")]
+    rows.append(("convergence time", *("never" if x is None else f"{x:.0f} s" for x in c)))
+    for i, axis in enumerate("xyz"):
+        rows.append((f"gyro-bias error {axis}", *(common.lab(result.result[m]["gyro_bias_error"][i], "deg/h",
+                                                             result.result[m]["gyro_bias_sigma"][i])
+                                                  for m in ("raw", "calibrated"))))
+    return pd.DataFrame(rows, columns=["quantity", "raw", "calibrated"])
+
+
+st.title("Navigation filters")
+name = st.selectbox("Procedure", list(PROCEDURES), format_func=PROCEDURES.get, key="nav.proc")
+tab_run, tab_result, tab_runs = st.tabs(["Run", "Analyse a session", "Finished runs"])
+
+with tab_run:
+    st.caption("On the simulated rig the run first calibrates the unit with the calibration procedures, "
+               "then records and analyses the validation sequence.")
+    grade = common.grade_picker(key="nav.grade")
+    with common.guarded("navigation run"):
+        from workbench import registry
+
+        proc = registry.procedure(name)
+        options = common.option_inputs(proc, key="nav.run")
+        if grade is not None:
+            seq = common.build_sequence(proc, grade, options)
+            common.show_sequence(seq)
+            seed = st.number_input("Seed", value=1, step=1, key="nav.seed")
+            if st.button("Start run", key="nav.start"):
+                folder = common.start_run(name, grade, int(seed), options, seq.duration_s, len(seq.expand()))
+                st.success(f"started: {folder}")
+
+with tab_result:
+    folder = common.session_picker(name, key="nav.session")
+    sets = []
+    with common.guarded("store"):
+        sets = common.store().list_sets()
+    labels = {f"{s.serial} v{s.version} · {s.created} · {s.id[:8]}": s.id for s in sets}
+    choice = st.selectbox("Calibration set", list(labels) or ["(no set in the store)"], key="nav.set")
+    force = st.checkbox("Use a set of another unit (force)", key="nav.force")
+    if folder is not None and choice in labels and st.button("Analyse", key="nav.analyse"):
+        with common.guarded(f"{name} on {folder}", catch_all=True):
+            from workbench import registry
+            from workbench.session import load_session
+
+            with st.spinner("Replaying the session through the filters ..."):
+                result = registry.procedure(name).analyze(
+                    load_session(folder), calibration=common.store().get_set(labels[choice]), force=force)
+            st.dataframe(numbers(result), hide_index=True, width="stretch")
+            common.show_result(result)
+
+with tab_runs:
+    runs = [f for f in common.list_runs() if common.run_status(f).job.get("procedure") == name]
+    if not runs:
+        st.info(f"No {name} run yet: start one in the Run tab.")
+    else:
+        pick = st.selectbox("Run", [r.name for r in runs], key="nav.runpick")
+        common.show_result(next(r for r in runs if r.name == pick))

@@ -1,0 +1,161 @@
+"""RealRig and open_real_rig: configuration errors, limits, interlocks, safe stops, resume."""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+import procedures.multiposition as mp
+from tests.drivers.conftest import FS, hil_yaml
+from workbench.calset import Unit
+from workbench.drivers.rig import open_real_rig
+from workbench.errors import RigError, RigLimitError
+from workbench.grades import draw_unit, load_spec
+from workbench.jobs import open_rig, record_procedure, resume_procedure
+from workbench.rigconfig import load_rig_config
+from workbench.runner import PARTS, read_parts, record, start
+from workbench.sequence import Hold, Rotate, Sequence
+from workbench.session import load_session
+
+SPEC = load_spec("industrial_mems")
+
+
+@pytest.fixture
+def hil(tmp_path, start_lab, closing):
+    """A running loopback lab, its configuration file, and a connected rig."""
+    path = hil_yaml(tmp_path)
+    truth = replace(draw_unit(SPEC, 2), sample_rate_hz=FS)
+    lab = start_lab(path, truth=truth, seed=3)
+    return lab, path, truth
+
+
+def test_unknown_driver_and_missing_fields(tmp_path):
+    cfg = load_rig_config(hil_yaml(tmp_path, driver="acme"))
+    with pytest.raises(RigError, match=r"rig hil-acutrol-espec: unknown driver 'acme' \(known: sim, real\)"):
+        open_rig(cfg, None, 0)
+    cfg = load_rig_config(hil_yaml(tmp_path))
+    opts = {k: v for k, v in cfg.options.items() if k != "imu_stream"}
+    with pytest.raises(RigError, match=r"rig hil-acutrol-espec: missing field 'imu_stream'"):
+        open_real_rig(replace(cfg, options=opts))
+    bad = {**cfg.options, "chamber_controller": {"driver": "telnet"}}
+    with pytest.raises(RigError, match=r"chamber: unknown chamber_controller.driver 'telnet' \(known: ascii, modbus\)"):
+        open_real_rig(replace(cfg, options=bad))
+
+
+def test_address_that_does_not_answer(tmp_path):
+    cfg = load_rig_config(hil_yaml(tmp_path))  # free ports, nothing started
+    with pytest.raises(RigError, match=r"rig hil-acutrol-espec: turntable \(TCPIP0::127\.0\.0\.1::\d+::SOCKET\): "
+                                       r"cannot open"):
+        open_real_rig(cfg)
+
+
+def test_identify_moves_nothing(hil, closing):
+    lab, path, _ = hil
+    rig = closing(open_real_rig(load_rig_config(path)))
+    info = rig.identify()
+    assert info["table"].startswith("HIL") and info["interlock"] == "clear"
+    assert info["air_c"] == pytest.approx(23.0, abs=0.01)
+    assert info["table_angle_deg"] == 0.0 and lab.sim.state.table_rate == 0.0
+
+
+def test_limits_checked_before_anything_moves(hil, closing):
+    lab, path, _ = hil
+    cfg = load_rig_config(path)
+    rig = closing(open_real_rig(cfg))
+    too_fast = Sequence("fast", [Hold("z-down", 0.0, 1.0), Rotate("z-down", np.radians(1500.0), 1.0)])
+    with pytest.raises(RigLimitError, match=r"step 1 \(rate\): table rate 1500\.0 °/s exceeds the limit 1000\.0 °/s"):
+        start(too_fast, rig, Unit("u", "m"), "fast", None)
+    fixed = closing(open_real_rig(replace(cfg, options={**cfg.options, "fixture": {"mode": "fixed"}})))
+    with pytest.raises(RigLimitError, match=r"step 1 \(static, x-down\): needs a remount to x-down but fixture.mode is"):
+        start(mp.sequence(SPEC, dwell_s=1.0), fixed, Unit("u", "m"), "mp", None)
+    assert lab.sim.state.sample > 0 and lab.sim.state.table_rate == 0.0 and lab.sim.state.table_angle == 0.0
+
+
+def _interrupt(lab, after_step: int, device: str, fault: str):
+    def progress(i, n, rec):
+        if i == after_step:
+            lab.inject(device, fault)
+    return progress
+
+
+def test_interlock_stops_the_run_with_the_step_named(hil, closing, caplog):
+    lab, path, truth = hil
+    rig = closing(open_real_rig(load_rig_config(path)))
+    rec = start(mp.sequence(SPEC, dwell_s=2.0), rig, Unit(truth.serial, truth.model), mp.NAME, None)
+    with caplog.at_level(logging.WARNING, "workbench.rig"), pytest.raises(
+            RigError, match=r"rig hil-acutrol-espec: step 1 \(static, x-down\): .*interlock reported by the "
+                            r"controller: 1 \(INTERLOCK DOOR OPEN\)"):
+        record(rec, rig, _interrupt(lab, 0, "table", "interlock"))
+    assert "table stopped; chamber set to its safe setpoint 23 °C" in caplog.text
+    assert rec.done == 1
+
+
+def test_dropped_link_stops_safely_and_resume_continues(hil, tmp_path, caplog):
+    lab, path, truth = hil
+    cfg = load_rig_config(path)
+    out = tmp_path / "session"
+
+    def drop_after_step_1(i, n, rec):
+        if i == 1:
+            lab._set_chamber(40.0)  # the chamber is away from its safe setpoint when the link drops
+            lab.inject("table", "drop")
+
+    with caplog.at_level(logging.WARNING, "workbench.rig"), pytest.raises(
+            RigError, match=r"rig hil-acutrol-espec: step 2 \(static, y-up\): .*turntable \(TCPIP0::127\.0\.0\.1::\d+"
+                            r"::SOCKET\): connection lost during '"):
+        record_procedure(mp, SPEC, truth, cfg, 3, out, {"dwell_s": 2.0}, drop_after_step_1)
+    # made safe and said so: the STOP got through on a fresh link, the chamber went to 23 °C
+    assert "run stopped; table stopped; chamber set to its safe setpoint 23 °C" in caplog.text
+    assert lab.sim.state.chamber_target_c == 23.0 and lab._hold == 0.0
+    # completed steps stay readable
+    parts = read_parts(out)
+    assert sorted(set(parts["step"]) - {-1}) == [0, 1]
+    assert len(list((out / PARTS).glob("step_*.parquet"))) == 2
+    # --resume continues from step 2 on the same time axis and completes the session
+    session = resume_procedure(out)
+    assert [s.index for s in session.steps] == list(range(6))
+    assert session.steps[2].t_start > session.steps[1].t_end
+    assert load_session(out).steps[5].label == "z-down"
+    result = mp.analyze(session)
+    bias = result.payload["accel"].bias
+    truth_bias = truth.accel.apply(np.zeros((1, 3)), None, float(session.samples["temp"].mean()))[0]
+    assert np.all(np.abs(bias - truth_bias) < 4.0 * result.payload["accel"].bias_sigma)
+
+
+def test_ctrl_c_makes_the_rig_safe(hil, closing, caplog):
+    lab, path, truth = hil
+    rig = closing(open_real_rig(load_rig_config(path)))
+    lab._set_chamber(-20.0)
+    rec = start(Sequence("spin", [Rotate("z-down", np.radians(30.0), duration_s=60.0)]), rig,
+                Unit(truth.serial, truth.model), "spin", None)
+
+    def ctrl_c(i, n, r):
+        raise KeyboardInterrupt
+
+    with caplog.at_level(logging.WARNING, "workbench.rig"), pytest.raises(KeyboardInterrupt):
+        record(rec, rig, ctrl_c)
+    assert "table stopped" in caplog.text
+    assert lab._hold == 0.0 and lab.sim.state.chamber_target_c == 23.0
+
+
+def test_corrupt_stream_stops_the_run_naming_step_and_frame(hil, closing):
+    lab, path, truth = hil
+    rig = closing(open_real_rig(load_rig_config(path)))
+    rec = start(Sequence("hold", [Hold("z-down", 0.0, 3.0), Hold("z-down", 1.0, 3.0)]), rig,
+                Unit(truth.serial, truth.model), "hold", None)
+    with pytest.raises(RigError, match=r"step 1 \(static\): rig hil-acutrol-espec: imu stream \(socket://127\.0\.0\.1:"
+                                       r"\d+\): frame after sample \d+ does not parse \(checksum mismatch\)"):
+        record(rec, rig, _interrupt(lab, 0, "stream", "corrupt"))
+
+
+def test_stream_timestamp_jump_stops_the_run(hil, closing):
+    lab, path, truth = hil
+    rig = closing(open_real_rig(load_rig_config(path)))
+    rec = start(Sequence("hold", [Hold("z-down", 0.0, 3.0), Hold("z-down", 1.0, 3.0)]), rig,
+                Unit(truth.serial, truth.model), "hold", None)
+    with pytest.raises(RigError, match=r"step 1 \(static\): .*imu stream .*timestamps jump at frame \d+ after sample "
+                                       r"\d+: counter \d+ -> \d+ \(51 sample intervals\)"):
+        record(rec, rig, _interrupt(lab, 0, "stream", "jump"))

@@ -1,0 +1,57 @@
+"""The ahrs-table procedure on the simulated rig (consumer 9-axis board), raw vs calibrated."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import procedures.ahrs_table as proc
+from tests.nav.conftest import calibration_from_truth
+from workbench.calset import CalibrationSet
+from workbench.errors import AnalysisError, ProcedureError
+from workbench.grades import load_spec
+from workbench.procedure import result_json
+from workbench.sim import simulate
+
+SHORT = {"mounts": [[10.0, -5.0]], "rotate_s": 40.0, "dwell_s": 10.0}
+
+
+@pytest.fixture(scope="module")
+def run():
+    spec = load_spec("consumer_9axis")
+    session, truth = simulate(proc.sequence(spec, **SHORT), spec, seed=5)
+    cal = calibration_from_truth(truth)
+    return session, truth, cal, proc.analyze(session, calibration=cal)
+
+
+def test_calibrated_ahrs_meets_the_accuracy_and_raw_does_not(run):
+    *_, res = run
+    cal, raw = res.result["calibrated"], res.result["raw"]
+    for block in (cal, cal["complementary"]):
+        assert block["heading_error_deg"] < 1.0
+        assert block["roll_error_deg"] < 0.2 and block["pitch_error_deg"] < 0.2
+    # consumer hard iron ~10 µT on a 24 µT horizontal field: tens of degrees raw (paper 004 Fig. 15)
+    assert raw["heading_error_deg"] > 5.0 and raw["heading_error_deg"] > 10 * cal["heading_error_deg"]
+    assert cal["velocity_error_mps"] is None
+    assert cal["convergence_time_s"] is not None and cal["convergence_time_s"] < 30.0
+
+
+def test_calibrated_bias_against_the_table(run):
+    *_, res = run
+    cal = res.result["calibrated"]
+    assert np.all(np.abs(cal["gyro_bias_error"]) < 3 * np.array(cal["gyro_bias_sigma"]))
+    doc = json.loads(result_json(res))
+    assert set(doc["raw"]) >= {"roll_error_deg", "pitch_error_deg", "heading_error_deg", "velocity_error_mps",
+                               "convergence_time_s", "gyro_bias_error"}
+    assert len(proc.figures(res)) == 2
+
+
+def test_needs_a_magnetometer(run):
+    session, truth, cal, _ = run
+    with pytest.raises(AnalysisError, match="no mag triad"):
+        proc.analyze(session, calibration=CalibrationSet(cal.unit, {k: v for k, v in cal.triads.items()
+                                                                    if k != "mag"}, cal.noise))
+    with pytest.raises(ProcedureError, match="no magnetometer"):
+        proc.sequence(load_spec("quasi_tactical"))

@@ -1,0 +1,476 @@
+"""Hardware-in-the-loop simulator: the real drivers against loopback servers with the virtual lab behind them.
+
+:class:`HilLab` serves, on 127.0.0.1, what a rig configuration (``driver: real``) expects:
+
+- the turntable controller: a TCP line server answering the configured ``table_controller``
+  command set (a PyVISA ``TCPIP0::127.0.0.1::PORT::SOCKET`` resource talks to it),
+- the chamber controller: a TCP line server for the ASCII command set, or a pymodbus server
+  with the configured register map,
+- the IMU stream: frames in the configured format (TCP clients, or UDP datagrams to the
+  configured address), produced by the :class:`~workbench.sim.rig.SimRig` of the unit (its
+  motion, truth and virtual IMU) as the commanded table moves.
+
+The simulated clock can run ``speed`` times faster than the wall clock (``hil.speed``); the
+drivers time everything by the stream's sample counter, so a run is the same at any speed.
+Faults for tests (:meth:`HilLab.inject`): ``silent`` (no replies), ``garbage`` (malformed
+replies), ``refuse`` (setpoints refused), ``drop`` (the link is closed, and the next
+connection too), ``interlock`` (the table reports an interlock); for the stream ``corrupt``,
+``jump`` (the counter skips) and ``drop``.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import re
+import socket
+import socketserver
+import struct
+import threading
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import replace
+
+import numpy as np
+
+from workbench.drivers.imu_stream import SIGNALS, FrameFormat
+from workbench.drivers.turntable_visa import DEFAULT_COMMANDS
+from workbench.errors import RigError
+from workbench.rigconfig import RigConfig, rig_config_from_dict
+from workbench.sim.rig import SimRig, move_profile, ramp_profile, wrap_pi
+
+HOST = "127.0.0.1"
+_TICK_S = 0.01  # wall-clock period of the motion engine
+
+
+def free_port() -> int:
+    """A free TCP port on 127.0.0.1."""
+    with socket.socket() as s:
+        s.bind((HOST, 0))
+        return s.getsockname()[1]
+
+
+def _template_regex(template: str) -> re.Pattern:
+    """A regex matching what ``template.format(...)`` produces, numbers captured by field name."""
+    out, pos = "", 0
+    for m in re.finditer(r"\{(\w+)(?::[^}]*)?\}", template):
+        out += re.escape(template[pos:m.start()]) + (r"(?P<%s>[-+0-9.eE,]+)" % m.group(1))
+        pos = m.end()
+    return re.compile("^" + out + re.escape(template[pos:]) + "$")
+
+
+class _Server(socketserver.ThreadingTCPServer):
+    daemon_threads = True
+    allow_reuse_address = True
+    block_on_close = False
+
+
+class LineServer:
+    """A TCP line server on 127.0.0.1 calling ``respond(line) -> reply | None`` with fault injection."""
+
+    def __init__(self, device: str, port: int, respond: Callable[[str], str | None], faults: dict,
+                 read_termination: str = "\n", write_termination: str = "\n") -> None:
+        self.device, self.respond, self.faults = device, respond, faults
+        self.rterm, self.wterm = read_termination, write_termination
+        self.refuse_next = 0
+        self._conns: set[socket.socket] = set()
+        lab = self
+
+        class Handler(socketserver.BaseRequestHandler):
+            def handle(self) -> None:
+                lab._serve(self.request)
+
+        self.server = _Server((HOST, port), Handler)
+        self.port = self.server.server_address[1]
+        self._thread = threading.Thread(target=self.server.serve_forever, kwargs={"poll_interval": 0.05},
+                                        name=f"hil-{device}", daemon=True)
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def stop(self) -> None:
+        self.server.shutdown()
+        self.server.server_close()
+        self._close_all()
+        self._thread.join(timeout=2.0)
+
+    def _close_all(self) -> None:
+        for c in list(self._conns):
+            try:
+                c.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
+            c.close()
+        self._conns.clear()
+
+    def _serve(self, conn: socket.socket) -> None:
+        if self.refuse_next > 0:
+            self.refuse_next -= 1
+            conn.close()
+            return
+        self._conns.add(conn)
+        buf = b""
+        term = self.rterm.encode()
+        try:
+            while True:
+                data = conn.recv(4096)
+                if not data:
+                    return
+                buf += data
+                while term in buf:
+                    line, buf = buf.split(term, 1)
+                    fault = self.faults.get(self.device)
+                    if fault == "drop":
+                        self.faults[self.device] = None
+                        self.refuse_next = 1
+                        self._close_all()
+                        return
+                    reply = self.respond(line.decode("ascii", errors="replace").strip())
+                    if reply is None or fault == "silent":
+                        continue
+                    if fault == "garbage":
+                        reply = "\x15#?garbage"
+                    conn.sendall((reply + self.wterm).encode("ascii"))
+        except OSError:
+            return
+        finally:
+            self._conns.discard(conn)
+
+
+class HilLab:
+    """The loopback rig for a configuration (see the module docstring); use :meth:`start` / :meth:`stop`.
+
+    Parameters
+    ----------
+    cfg : rig configuration with ``driver: real`` and the ``hil`` section (``unit``, ``seed``,
+        ``speed``) or the ``truth`` given here
+    truth : the simulated unit (UnitTruth); default drawn from ``hil.unit`` with ``hil.seed``
+    speed : simulated seconds per wall-clock second (default ``hil.speed`` or 1)
+    free_ports : serve on free ports instead of the configured ones (tests); :attr:`config` then
+        points at them
+    """
+
+    def __init__(self, cfg: RigConfig, truth=None, seed: int | None = None, speed: float | None = None,
+                 free_ports: bool = False) -> None:
+        from workbench.grades import draw_unit, load_spec
+
+        opts = cfg.options
+        hil = opts.get("hil") or {}
+        self.seed = int(seed if seed is not None else hil.get("seed", 1))
+        self.speed = float(speed if speed is not None else hil.get("speed", 1.0))
+        self.stream_settings = dict(opts["imu_stream"])
+        self.fs = float(self.stream_settings["sample_rate_hz"])
+        if truth is None:
+            truth = draw_unit(load_spec(hil.get("unit", "industrial_mems")), self.seed)
+        self.truth = replace(truth, sample_rate_hz=self.fs)
+        self.format = FrameFormat.from_settings(self.stream_settings, "hil imu stream")
+        self.modulo = int(self.stream_settings.get("counter_modulo", 2 ** 32))
+        self.sim = SimRig(cfg, self.truth, self.seed)
+        self.lock = threading.RLock()
+        self.faults: dict[str, str | None] = {"table": None, "chamber": None, "stream": None}
+        self._queue = np.zeros(0)  # pending table-rate profile, rad/s per sample
+        self._hold = 0.0  # rate after the profile
+        self._new_error = True
+        self._errors: list[str] = []
+        self._counter_skip = 0
+        self._stop = threading.Event()
+        self._servers: list = []
+        self._stream_clients: set[socket.socket] = set()
+        self.cfg = cfg
+        self.config = self._addresses(cfg, free_ports)
+
+    # -- configuration ----------------------------------------------------------------------
+    def _addresses(self, cfg: RigConfig, free_ports: bool) -> RigConfig:
+        """The configuration with each device's address on 127.0.0.1 (free ports if asked)."""
+        opts = {k: dict(v) if isinstance(v, Mapping) else v for k, v in cfg.options.items()}
+        tc, ch, st = opts["table_controller"], opts.get("chamber_controller"), opts["imu_stream"]
+        self.table_port = free_port() if free_ports else _port_of(tc["resource"], "table_controller.resource")
+        tc["resource"] = f"TCPIP0::{HOST}::{self.table_port}::SOCKET"
+        if ch:
+            if ch.get("driver") == "modbus":
+                self.chamber_port = free_port() if free_ports else int(ch.get("port", 502))
+                ch.update(host=HOST, port=self.chamber_port)
+            else:
+                self.chamber_port = free_port() if free_ports else _port_of(ch["address"], "chamber_controller.address")
+                ch["address"] = f"socket://{HOST}:{self.chamber_port}"
+        addr = st["address"]
+        scheme = "udp" if addr.startswith("udp://") else "socket"
+        self.stream_port = free_port() if free_ports else _port_of(addr, "imu_stream.address")
+        st["address"] = f"{scheme}://{HOST}:{self.stream_port}"
+        d = {"name": cfg.name, "driver": cfg.driver, "site": cfg.site.to_dict(), **opts}
+        new = rig_config_from_dict(d, str(cfg.path or cfg.name))
+        return replace(new, magnetic_field_ned=cfg.magnetic_field_ned, turntable=cfg.turntable, chamber=cfg.chamber,
+                       path=cfg.path)
+
+    # -- lifecycle ------------------------------------------------------------------------
+    def start(self) -> HilLab:
+        """Start the servers and the motion engine; returns self."""
+        opts = self.config.options
+        tc = opts["table_controller"]
+        table = LineServer("table", self.table_port, self._table_reply, self.faults,
+                           tc.get("write_termination", "\n"), tc.get("read_termination", "\n"))
+        self._servers.append(table)
+        self._table_patterns = [(k, _template_regex(v)) for k, v in {**DEFAULT_COMMANDS, **(tc.get("commands") or {})}
+                                .items() if v]
+        ch = opts.get("chamber_controller")
+        if ch and ch.get("driver") == "modbus":
+            self._servers.append(_ModbusChamberServer(self, ch))
+        elif ch:
+            from workbench.drivers.chamber_ascii import DEFAULTS
+
+            self._chamber = {**DEFAULTS, **ch}
+            self._chamber_set = _template_regex(self._chamber["set"])
+            self._servers.append(LineServer("chamber", self.chamber_port, self._chamber_reply, self.faults,
+                                            ch.get("write_termination", "\r\n"), ch.get("read_termination", "\r\n")))
+        for s in self._servers:
+            s.start()
+        self._stream_server = None
+        if not self.config.options["imu_stream"]["address"].startswith("udp://"):
+            self._stream_server = socket.create_server((HOST, self.stream_port))
+            self._stream_server.settimeout(0.05)
+        self._engine = threading.Thread(target=self._run, name="hil-engine", daemon=True)
+        self._engine.start()
+        return self
+
+    def stop(self) -> None:
+        """Stop the engine and every server, closing all connections (idempotent)."""
+        if self._stop.is_set():
+            return
+        self._stop.set()
+        if getattr(self, "_engine", None) is not None:
+            self._engine.join(timeout=2.0)
+        for s in self._servers:
+            s.stop()
+        for c in list(self._stream_clients):
+            c.close()
+        self._stream_clients.clear()
+        if self._stream_server is not None:
+            self._stream_server.close()
+
+    def __enter__(self) -> HilLab:
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+    def inject(self, device: str, fault: str | None) -> None:
+        """Inject a fault into ``device`` (table | chamber | stream); None clears it."""
+        if device not in self.faults:
+            raise RigError(f"hil: unknown device {device!r} (known: {', '.join(self.faults)})")
+        self.faults[device] = fault
+        if device == "stream" and fault == "jump":
+            self._counter_skip = 50
+
+    # -- motion engine --------------------------------------------------------------------
+    def _rates(self, n: int) -> np.ndarray:
+        take = self._queue[:n]
+        self._queue = self._queue[n:]
+        return np.concatenate([take, np.full(n - len(take), self._hold)])
+
+    def _plan(self, target_angle: float | None, target_rate: float) -> None:
+        """Replace the pending motion: decelerate / accelerate, or a rest-to-rest move to an angle."""
+        tt, st = self.cfg.turntable, self.sim.state
+        r0 = st.table_rate
+        if target_angle is None:
+            self._queue = ramp_profile(r0, target_rate, tt.max_accel, self.fs) if r0 != target_rate else np.zeros(0)
+            self._hold = target_rate
+            return
+        decel = ramp_profile(r0, 0.0, tt.max_accel, self.fs) if r0 != 0.0 else np.zeros(0)
+        prev = np.concatenate([[r0], decel[:-1]])
+        after = st.table_angle + float(np.sum(0.5 * (prev + decel)) / self.fs)
+        delta = wrap_pi(target_angle - after)
+        move = move_profile(delta, min(tt.max_rate, np.radians(60.0)), tt.max_accel, self.fs) \
+            if abs(delta) > 1e-12 else np.zeros(0)
+        self._queue, self._hold = np.concatenate([decel, move]), 0.0
+        self._new_error = True
+
+    def _run(self) -> None:
+        tick = max(_TICK_S, 100.0 / (self.fs * self.speed))  # >= 100 samples per tick when fast
+        per_tick = self.fs * self.speed * tick
+        owed, next_tick = 0.0, time.monotonic()
+        while not self._stop.is_set():
+            self._accept_stream_clients()
+            owed += per_tick
+            n = int(owed)
+            owed -= n
+            if n:
+                with self.lock:
+                    df = self.sim.advance(self._rates(n), new_fixture_error=self._new_error)
+                    self._new_error = False
+                self._send_frames(df)
+            next_tick += tick
+            time.sleep(max(0.0, next_tick - time.monotonic()))
+
+    def _accept_stream_clients(self) -> None:
+        if self._stream_server is None:
+            return
+        try:
+            conn, _ = self._stream_server.accept()
+        except (TimeoutError, OSError):
+            return
+        self._stream_clients.add(conn)
+
+    def _send_frames(self, df) -> None:
+        fault = self.faults["stream"]
+        if fault == "silent":
+            return
+        if fault == "drop":
+            self.faults["stream"] = None
+            for c in list(self._stream_clients):
+                c.close()
+            self._stream_clients.clear()
+            return
+        values = {c: df[c].to_numpy() for c in SIGNALS if c in df.columns}
+        samples = np.round(df["t"].to_numpy() * self.fs).astype(np.int64)
+        if self._counter_skip:
+            samples = samples + self._counter_skip
+            self.faults["stream"] = None
+        values.update(counter=samples % self.modulo, time=samples / self.fs)
+        data = self.format.encode(values)
+        if fault == "corrupt":  # every frame unreadable: garbage lines, or payload bytes 0xFF (NaN, bad checksum)
+            if self.format.kind == "text":
+                data = b"#garbage\n" * len(samples)
+            else:
+                frames = np.frombuffer(data, np.uint8).reshape(len(samples), -1).copy()
+                frames[:, len(self.format.sync):len(self.format.sync) + struct.calcsize(self.format.layout)] = 0xFF
+                data = frames.tobytes()
+        address = self.config.options["imu_stream"]["address"]
+        if address.startswith("udp://"):
+            with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+                for a in range(0, len(data), 8192):
+                    s.sendto(data[a:a + 8192], (HOST, self.stream_port))
+            return
+        for c in list(self._stream_clients):
+            try:
+                c.sendall(data)
+            except OSError:
+                self._stream_clients.discard(c)
+                c.close()
+
+    # -- table controller -----------------------------------------------------------------
+    def _table_reply(self, line: str) -> str | None:
+        for key, pattern in self._table_patterns:
+            m = pattern.match(line)
+            if m:
+                with self.lock:
+                    return self._table_command(key, {k: v for k, v in m.groupdict().items()})
+        self._errors.append("-113,Undefined header")
+        return "ERR -113,Undefined header" if line.endswith("?") else None
+
+    def _table_command(self, key: str, f: dict) -> str | None:
+        st, tt = self.sim.state, self.cfg.turntable
+        refuse = self.faults["table"] == "refuse"
+        if key == "identify":
+            return "HIL,workbench turntable simulator,0,1.0"
+        if key == "read_angle":
+            res = tt.encoder_resolution
+            return f"{np.degrees(np.mod(np.round(st.table_angle / res) * res, 2 * np.pi)):.6f}"
+        if key == "read_rate":
+            return f"{np.degrees(st.table_rate):.6f}"
+        if key == "status":
+            return "INTERLOCK DOOR OPEN" if self.faults["table"] == "interlock" else \
+                f"READY,{'RATE' if self._hold else 'POSITION'}"
+        if key == "interlock":
+            return "1" if self.faults["table"] == "interlock" else "0"
+        if key == "error":
+            return self._errors.pop(0) if self._errors else "0,No error"
+        if key == "stop":
+            self._plan(None, 0.0)
+        elif key == "position":
+            if refuse:
+                self._errors.append("-222,Data out of range")
+            else:
+                self._plan(np.radians(float(f["angle_deg"])), 0.0)
+        elif key == "rate":
+            rate = np.radians(float(f["rate_dps"]))
+            if refuse or abs(rate) > tt.max_rate * (1 + 1e-6):
+                self._errors.append("-222,Data out of range")
+            else:
+                self._plan(None, rate)
+        elif key == "mount":
+            m = np.array([float(x) for x in f["mount"].split(",")]).reshape(3, 3)
+            st.mount = m.tolist()
+            self._new_error = True
+        return None
+
+    # -- ASCII chamber ----------------------------------------------------------------------
+    def _set_chamber(self, setpoint_c: float) -> bool:
+        ch = self.cfg.chamber
+        if self.faults["chamber"] == "refuse" or not ch.min_c <= setpoint_c <= ch.max_c:
+            return False
+        with self.lock:
+            self.sim.state.chamber_target_c = float(setpoint_c)
+            self.sim.state.chamber_rate_c_per_min = ch.max_ramp_c_per_min
+        return True
+
+    def _chamber_reply(self, line: str) -> str | None:
+        c, st = self._chamber, self.sim.state
+        if line == c["identify"]:
+            return "HIL ESPEC-STYLE CHAMBER SIMULATOR"
+        if line == c["read"]:
+            return f"{st.air_c:.2f},{st.chamber_target_c:.1f},{self.cfg.chamber.max_c:.1f},{self.cfg.chamber.min_c:.1f}"
+        m = self._chamber_set.match(line)
+        if m:
+            value = float(m.group("setpoint_c"))
+            return f"OK: {line}" if self._set_chamber(value) else "NA:DATA OUT OF RANGE"
+        return "NA:COMMAND ERROR"
+
+
+class _ModbusChamberServer:
+    """A pymodbus TCP server (own thread and event loop) with the configured register map."""
+
+    def __init__(self, lab: HilLab, settings: Mapping) -> None:
+        self.lab, self.port = lab, int(settings["port"])
+        regs = settings["registers"]
+        self.reg = {k: (int(v["address"]), float(v.get("scale", 1.0))) for k, v in regs.items()}
+        self.size = max(a for a, _ in self.reg.values()) + 1
+        self.device_id = int(settings.get("device_id", 1))
+        self._loop = asyncio.new_event_loop()
+        self._thread = threading.Thread(target=self._loop.run_forever, name="hil-modbus", daemon=True)
+        self.server = None
+
+    async def _action(self, function_code, start_address, address, count, registers, values):
+        from pymodbus.constants import ExcCodes
+
+        lab = self.lab
+        if lab.faults["chamber"] == "silent":
+            await asyncio.sleep(5.0)
+        temp_addr, temp_scale = self.reg["temperature"]
+        sp_addr, sp_scale = self.reg["setpoint"]
+        registers[temp_addr - start_address] = int(round(lab.sim.state.air_c / temp_scale)) & 0xFFFF
+        if values is None:
+            registers[sp_addr - start_address] = int(round(lab.sim.state.chamber_target_c / sp_scale)) & 0xFFFF
+            return None
+        if address == sp_addr:
+            raw = int(values[0])
+            raw = raw - 0x10000 if raw >= 0x8000 else raw
+            if not lab._set_chamber(raw * sp_scale):
+                return ExcCodes.ILLEGAL_VALUE
+        return None
+
+    def start(self) -> None:
+        from pymodbus.server import ModbusTcpServer
+        from pymodbus.simulator import DataType, SimData, SimDevice
+
+        device = SimDevice(self.device_id, simdata=[SimData(0, count=self.size, values=0,
+                                                            datatype=DataType.REGISTERS)], action=self._action)
+        self._thread.start()
+
+        async def serve():
+            self.server = ModbusTcpServer(device, address=(HOST, self.port))
+            await self.server.serve_forever(background=True)
+
+        asyncio.run_coroutine_threadsafe(serve(), self._loop).result(timeout=5.0)
+
+    def stop(self) -> None:
+        if self.server is not None:
+            asyncio.run_coroutine_threadsafe(self.server.shutdown(), self._loop).result(timeout=5.0)
+        self._loop.call_soon_threadsafe(self._loop.stop)
+        self._thread.join(timeout=2.0)
+        self._loop.close()
+
+
+def _port_of(address: str, field: str) -> int:
+    m = re.search(r"(?:127\.0\.0\.1|localhost)(?:::|:)(\d+)", address)
+    if not m:
+        raise RigError(f"hil: {field} {address!r} is not a 127.0.0.1 address with a port")
+    return int(m.group(1))

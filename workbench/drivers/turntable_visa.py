@@ -1,0 +1,203 @@
+"""Rate-table driver over PyVISA; the command strings come from the rig configuration.
+
+One driver serves SCPI-style motion controllers (ACUTROL-like over GPIB or Ethernet, Ideal
+Aerosmith-style ASCII over RS-232 as a VISA ``ASRL`` resource): the configuration's
+``table_controller.commands`` gives each command as a Python format string with the fields
+``{angle_deg}``, ``{rate_dps}`` and ``{mount}`` (nine comma-separated numbers, row-major).
+The pure-Python ``pyvisa-py`` backend (``visa_library: "@py"``) needs no vendor VISA; a
+``TCPIP0::host::port::SOCKET`` resource talks to a plain TCP server.
+
+Every setting command is followed by the ``error`` query (when configured): a reply not
+matching ``replies.no_error`` is a refused setpoint. Any reply matching
+``replies.error_reply`` is a controller error. Timeouts are retried ``retries`` times; a
+dropped link is reopened once. Failures are :class:`RigError` naming the table, its
+resource and the command. SI at the interface (rad, rad/s), degrees on the wire.
+"""
+
+from __future__ import annotations
+
+import re
+import socket
+from collections.abc import Mapping
+
+import numpy as np
+import pyvisa
+from pyvisa.constants import StatusCode
+
+from workbench.drivers.transport import reply_number, short_error
+from workbench.errors import RigError
+
+DEFAULT_COMMANDS = {
+    "identify": "*IDN?",
+    "position": "POS:COMM {angle_deg:.5f}",  # position mode: go to an absolute angle
+    "rate": "RATE:COMM {rate_dps:.5f}",  # rate mode: turn at a constant rate
+    "stop": "STOP",  # decelerate to rest and hold
+    "read_angle": "POS?",  # reply: degrees
+    "read_rate": "RATE?",  # reply: degrees per second
+    "status": "STAT?",
+    "interlock": "INTL?",  # reply matching replies.interlock_clear when clear
+    "error": "SYST:ERR?",  # reply matching replies.no_error when the last command was accepted
+    "mount": None,  # motorised fixture / HIL only: "FIXT:MOUNT {mount}"
+}
+DEFAULT_REPLIES = {"error_reply": r"^(ERR|ERROR|\?|NAK)", "no_error": r"^\+?0\b", "interlock_clear": r"^0$"}
+
+
+class VisaTurntable:
+    """A single-axis rate table behind a VISA resource, configured by ``table_controller``."""
+
+    def __init__(self, settings: Mapping, name: str = "turntable") -> None:
+        if "resource" not in settings:
+            raise RigError(f"{name}: missing field 'table_controller.resource'")
+        self.resource = str(settings["resource"])
+        self.where = f"{name} ({self.resource})"
+        self.library = str(settings.get("visa_library", "@py"))
+        self.timeout_s = float(settings.get("timeout_s", 1.0))
+        self.retries = int(settings.get("retries", 2))
+        self.read_termination = str(settings.get("read_termination", "\n"))
+        self.write_termination = str(settings.get("write_termination", "\n"))
+        unknown = set(settings.get("commands", {}) or {}) - set(DEFAULT_COMMANDS)
+        if unknown:
+            raise RigError(f"{name}: unknown command(s) {', '.join(sorted(unknown))} in table_controller.commands "
+                           f"(known: {', '.join(DEFAULT_COMMANDS)})")
+        self.commands = {**DEFAULT_COMMANDS, **(settings.get("commands") or {})}
+        replies = {**DEFAULT_REPLIES, **(settings.get("replies") or {})}
+        self._error_reply = re.compile(replies["error_reply"])
+        self._no_error = re.compile(replies["no_error"])
+        self._clear = re.compile(replies["interlock_clear"])
+        self._rm = None
+        self._inst = None
+
+    # -- link -------------------------------------------------------------------------
+    def open(self) -> None:
+        """Open the VISA resource; RigError if it does not answer."""
+        self.close()
+        try:
+            self._rm = pyvisa.ResourceManager(self.library)
+            self._inst = self._rm.open_resource(self.resource, timeout=int(self.timeout_s * 1000),
+                                                read_termination=self.read_termination,
+                                                write_termination=self.write_termination)
+        except (pyvisa.errors.Error, OSError, ValueError) as exc:
+            self.close()
+            raise RigError(f"{self.where}: cannot open ({short_error(exc)})") from None
+        if self._peer_closed():  # pyvisa-py opens a TCP resource even when the connection was refused
+            self.close()
+            raise RigError(f"{self.where}: cannot open (connection refused or closed by the controller)")
+
+    def close(self) -> None:
+        """Release the resource (idempotent)."""
+        for obj in (self._inst, self._rm):
+            if obj is not None:
+                try:
+                    obj.close()
+                except (pyvisa.errors.Error, OSError):
+                    pass
+        self._inst = self._rm = None
+
+    def _command(self, key: str, **fields) -> str:
+        template = self.commands.get(key)
+        if not template:
+            raise RigError(f"{self.where}: no '{key}' command in table_controller.commands")
+        return template.format(**fields)
+
+    def _io(self, command: str, reply: bool) -> str:
+        tries, reopened = 0, False
+        while True:
+            try:
+                if self._inst is None:
+                    self.open()
+                if not reply:
+                    self._inst.write(command)
+                    return ""
+                answer = self._inst.query(command).strip()
+            except pyvisa.errors.VisaIOError as exc:
+                if exc.error_code == StatusCode.error_timeout and not self._peer_closed():
+                    tries += 1
+                    if tries > self.retries:
+                        raise RigError(f"{self.where}: no answer to {command!r} after {tries} tries "
+                                       f"(timeout {self.timeout_s:g} s)") from None
+                    continue
+                if reopened:
+                    self.close()
+                    raise RigError(f"{self.where}: connection lost during {command!r} ({short_error(exc)})") from None
+                reopened = True
+                try:
+                    self.open()
+                except RigError:
+                    raise RigError(f"{self.where}: connection lost during {command!r} ({short_error(exc)}) "
+                                   "and reopening failed") from None
+                continue
+            except (pyvisa.errors.Error, OSError) as exc:
+                self.close()
+                raise RigError(f"{self.where}: connection lost during {command!r} ({short_error(exc)})") from None
+            if self._error_reply.search(answer):
+                raise RigError(f"{self.where}: controller error {answer!r} in reply to {command!r}")
+            return answer
+
+    def _peer_closed(self) -> bool:
+        """Whether the controller closed a TCP link (pyvisa-py reports that as a timeout)."""
+        try:
+            sock = self._inst.visalib.sessions[self._inst.session].interface
+            return sock.recv(1, socket.MSG_PEEK | socket.MSG_DONTWAIT) == b""
+        except BlockingIOError:
+            return False
+        except (ConnectionError, OSError):
+            return True
+        except (AttributeError, KeyError, TypeError):  # not a pyvisa-py socket session (GPIB, serial, vendor VISA)
+            return False
+
+    def query(self, key: str, **fields) -> str:
+        """Send the configured command ``key`` and return its reply."""
+        return self._io(self._command(key, **fields), reply=True)
+
+    def _set(self, key: str, **fields) -> None:
+        command = self._command(key, **fields)
+        self._io(command, reply=False)
+        if self.commands.get("error"):
+            answer = self.query("error")
+            if not self._no_error.search(answer):
+                raise RigError(f"{self.where}: {command!r} refused by the controller: {answer!r}")
+
+    # -- table ------------------------------------------------------------------------
+    def identify(self) -> str:
+        """The controller's identity string."""
+        return self.query("identify")
+
+    def angle(self) -> float:
+        """Read-back table angle, rad, wrapped to [0, 2 pi)."""
+        cmd = self._command("read_angle")
+        return float(np.mod(np.radians(reply_number(self.where, cmd, self.query("read_angle"))), 2 * np.pi))
+
+    def rate(self) -> float:
+        """Read-back table rate, rad/s (positive clockwise seen from above)."""
+        cmd = self._command("read_rate")
+        return float(np.radians(reply_number(self.where, cmd, self.query("read_rate"))))
+
+    def goto(self, angle: float) -> None:
+        """Position mode: move to the absolute angle ``angle`` rad."""
+        self._set("position", angle_deg=float(np.degrees(np.mod(angle, 2 * np.pi))))
+
+    def spin(self, rate: float) -> None:
+        """Rate mode: turn at ``rate`` rad/s."""
+        self._set("rate", rate_dps=float(np.degrees(rate)))
+
+    def stop(self) -> None:
+        """Decelerate to rest."""
+        self._set("stop")
+
+    def mount(self, matrix: np.ndarray) -> None:
+        """Set a motorised fixture to the body->table-top rotation ``matrix`` (needs the ``mount`` command)."""
+        self._set("mount", mount=",".join(f"{v:.9f}" for v in np.asarray(matrix, float).ravel()))
+
+    def status(self) -> str:
+        """The controller's status text."""
+        return self.query("status")
+
+    def interlock(self) -> str | None:
+        """None when the interlocks are clear, else the controller's interlock reply (and status)."""
+        if not self.commands.get("interlock"):
+            return None
+        answer = self.query("interlock")
+        if self._clear.search(answer):
+            return None
+        status = self.status() if self.commands.get("status") else ""
+        return f"{answer}{' (' + status + ')' if status else ''}"
