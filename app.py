@@ -41,4 +41,5 @@ def main() -> None:
     st.navigation(pages).run()
 
 
-main()
+if __name__ == "__main__":  # streamlit runs the script as __main__; tests import discover()
+    main()

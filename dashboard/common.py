@@ -195,7 +195,7 @@ def show_sequence(seq: Any) -> None:
     c1, c2 = st.columns(2)
     c1.metric("Steps", len(table))
     c2.metric("Total time (rig time)", format_duration(float(seq.duration_s)))
-    st.dataframe(table, width="stretch", hide_index=False)
+    st.dataframe(table, width="stretch", hide_index=True)
 
 
 # -- background runs -------------------------------------------------------------------

@@ -8,7 +8,10 @@ Analysis (``workbench analyze ahrs-table SESSION --calibration SET``): both AHRS
 :mod:`workbench.nav.ahrs` (Kalman with gyro-bias states, complementary) run on the raw samples
 and on the samples compensated with the set, re-initialised at each mount (a remount moves the
 unit by hand). The process and accelerometer measurement noise come from the set's noise block
-(the same for both runs); the magnetometer noise from the samples; the declination from
+(the same for both runs); the errors left in the samples from the set (its coefficients for
+the raw run, their sigmas for the calibrated one): gyro scale/misalignment (an apparent bias that
+moves with the rate), accelerometer and magnetometer bias and ``M`` (systematic tilt and heading
+measurement errors); the magnetometer white noise from the samples; the declination from
 ``declination_deg`` or the rig configuration. The table is the truth (``Session.attitude`` with
 the encoder angle), evaluated at the filters' update epochs inside the steps.
 
@@ -23,6 +26,8 @@ step) and ``gyro_bias_sigma`` (the filter's and the reference's in quadrature).
 """
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 
@@ -96,9 +101,28 @@ def _convergence(t: np.ndarray, err: np.ndarray, heading_tol: float, tilt_tol: f
     return float(t[0 if len(bad) == 0 else bad[-1] + 1] - t[0])
 
 
-def _run_filter(name: str, session: Session, samples, rows, noise, cfg, o) -> dict:
+def _residual(cal: CalibrationSet, triad: str, calibrated: bool, field: float) -> tuple[float, float]:
+    """RMS per axis of the bias and of ``M`` left in a triad's samples: (SI unit of the triad, 1).
+
+    Raw: the set's own coefficients (what compensation would remove); calibrated: their 1-sigma
+    (the raw figure where the set did not observe an element). ``field`` is the input magnitude
+    (g or the field norm) that ``M`` scales into an error.
+    """
+    tc = cal.triads[triad]
+    out = []
+    for name in ("bias", "scale_misalignment"):
+        raw = getattr(tc.model, name)
+        val = raw
+        if calibrated:
+            sig = tc.sigma_of(name)
+            val = np.where(np.isfinite(sig), sig, raw)
+        out.append(float(np.sqrt(np.mean(np.asarray(val) ** 2))))
+    return float(np.hypot(out[0], out[1] * field)), out[1]
+
+
+def _run_filter(name: str, session: Session, samples, rows, noise, cfg, o, scale_sigma: float) -> dict:
     """One filter over one mount segment: epochs in steps, attitude errors (deg), bias error."""
-    res = ahrs.kalman(samples, noise, session.site.latitude, cfg) if name == "kalman" \
+    res = ahrs.kalman(samples, noise, session.site.latitude, cfg, scale_sigma=scale_sigma) if name == "kalman" \
         else ahrs.complementary(samples, session.site.latitude, cfg)
     idx = rows[np.searchsorted(samples.t, res.t)]
     truth = table_truth(session, idx)
@@ -138,18 +162,23 @@ def analyze(session: Session, calibration: CalibrationSet | None = None, **optio
         raise AnalysisError(f"{session.name}: samples have no magnetometer columns mx, my, mz (the AHRS needs them)")
     noise = process_noise(calibration)
     warnings += list(noise.notes)
-    cfg = ahrs.AhrsConfig(update_interval_s=float(o["update_interval_s"]),
-                          declination=declination(session, o["declination_deg"]),
-                          tau_tilt_s=float(o["tau_tilt_s"]), tau_heading_s=float(o["tau_heading_s"]))
+    base = ahrs.AhrsConfig(update_interval_s=float(o["update_interval_s"]),
+                           declination=declination(session, o["declination_deg"]),
+                           tau_tilt_s=float(o["tau_tilt_s"]), tau_heading_s=float(o["tau_heading_s"]))
     raw_all = imu_samples(session.samples, session.sample_rate_hz, session.name)
     cal_all = compensate(raw_all, calibration, TRIADS)
     blocks, payload = {}, {}
+    field = calibration.triads["mag"].field_norm_ut or float(np.median(np.linalg.norm(raw_all.mag, axis=1)))
     for mode, data in (("raw", raw_all), ("calibrated", cal_all)):
+        calibrated = mode == "calibrated"
+        cfg = replace(base, accel_error=_residual(calibration, "accel", calibrated, session.site.gravity)[0],
+                      mag_error_ut=_residual(calibration, "mag", calibrated, field)[0])
         per_filter = {name: [] for name in _FILTERS}
         for rows in mount_segments(session):
             seg = data.slice(int(rows[0]), int(rows[-1]) + 1)
             for name in _FILTERS:
-                per_filter[name].append(_run_filter(name, session, seg, rows, noise, cfg, o))
+                per_filter[name].append(_run_filter(name, session, seg, rows, noise, cfg, o,
+                                                    _residual(calibration, "gyro", calibrated, 0.0)[1]))
         block = _metrics(per_filter["kalman"])
         block["complementary"] = _metrics(per_filter["complementary"])
         blocks[mode] = block
@@ -157,7 +186,7 @@ def analyze(session: Session, calibration: CalibrationSet | None = None, **optio
                                 "errors_deg": np.vstack([s["errors_deg"] for s in segs])}
                          for name, segs in per_filter.items()}
     result = {"raw": blocks["raw"], "calibrated": blocks["calibrated"], "calibration_id": calibration.id,
-              "declination_deg": float(np.degrees(cfg.declination)), "update_interval_s": cfg.update_interval_s}
+              "declination_deg": float(np.degrees(base.declination)), "update_interval_s": base.update_interval_s}
     return ProcedureResult(NAME, result, None, payload, _summary(blocks), warnings)
 
 

@@ -289,3 +289,9 @@ def test_igrf_reference_field_is_plausible_and_checks_the_fit():
     notes = compare(fit, ref)
     assert any("dip" in n for n in notes) and not any("norm" in n for n in notes)  # 48 vs 46.7: within 5 %
     assert compare(fit, ReferenceField(48.0, DIP, DECL)) == []
+
+
+def test_large_hard_iron_is_not_mistaken_for_a_unit_slip():
+    m, _ = _full_points()
+    cal = calibrate(MagPoints(m + np.array([250.0, 0.0, 0.0])), method="ellipsoid", field_norm_ut=F)
+    assert abs(cal.fit.bias[0] - 258.0) < 0.2  # 250 µT added to the 8 µT hard iron

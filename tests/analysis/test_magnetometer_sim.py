@@ -136,4 +136,4 @@ def test_sequence_follows_the_fixture_and_rejects_bad_options():
     with pytest.raises(ProcedureError, match="unknown option"):
         proc.sequence(SPEC, tilt=[0, 0])
     with pytest.raises(ProcedureError, match="no magnetometer"):
-        proc.sequence(load_spec("industrial_mems"))
+        proc.sequence(load_spec("hg1700"))

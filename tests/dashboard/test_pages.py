@@ -26,14 +26,26 @@ def test_app_discovers_pages_in_prefix_order():
     import importlib.util
 
     spec = importlib.util.spec_from_file_location("dash_app", REPO / "app.py")
-    source = (REPO / "app.py").read_text().replace("\nmain()\n", "\n")  # the discovery only, no Streamlit run
-    mod = importlib.util.module_from_spec(spec)
-    exec(compile(source, str(REPO / "app.py"), "exec"), mod.__dict__)
-    found = mod.discover()
+    app = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(app)  # not __main__: defines discover() without running Streamlit
+    found = app.discover()
     orders = [o for o, *_ in found]
-    assert orders == sorted(orders)
+    assert orders == sorted(orders) and orders[0] == 10
     titles = {name: title for _, name, title, _ in found}
     assert titles["overview"] == "Overview" and titles["calibration_sets"] == "Calibration sets"
+
+
+def test_app_titles_from_constant_or_file_name(tmp_path):
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("dash_app", REPO / "app.py")
+    app = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(app)
+    (tmp_path / "40_north_finding.py").write_text("import streamlit as st\n")
+    (tmp_path / "5_first.py").write_text('TITLE = "First page"\n')
+    (tmp_path / "helpers.py").write_text("")  # not a page: no NN_ prefix
+    assert [(o, n, t) for o, n, t, _ in app.discover(tmp_path)] == [(5, "first", "First page"),
+                                                                     (40, "north_finding", "North finding")]
 
 
 def test_app_runs_and_shows_overview(seeded_db):

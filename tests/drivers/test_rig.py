@@ -129,7 +129,7 @@ def test_ctrl_c_makes_the_rig_safe(hil, closing, caplog):
     lab, path, truth = hil
     rig = closing(open_real_rig(load_rig_config(path)))
     lab._set_chamber(-20.0)
-    rec = start(Sequence("spin", [Rotate("z-down", np.radians(30.0), duration_s=60.0)]), rig,
+    rec = start(Sequence("spin", [Rotate("z-down", np.radians(30.0), duration_s=10.0)]), rig,
                 Unit(truth.serial, truth.model), "spin", None)
 
     def ctrl_c(i, n, r):
@@ -159,3 +159,34 @@ def test_stream_timestamp_jump_stops_the_run(hil, closing):
     with pytest.raises(RigError, match=r"step 1 \(static\): .*imu stream .*timestamps jump at frame \d+ after sample "
                                        r"\d+: counter \d+ -> \d+ \(51 sample intervals\)"):
         record(rec, rig, _interrupt(lab, 0, "stream", "jump"))
+
+
+def test_soak_ramp_and_rotation_through_the_drivers(tmp_path, start_lab, closing):
+    from workbench.sequence import Ramp, Soak
+
+    # a unit with a 10 s thermal lag keeps the soak short (the chamber air moves at 5 °C/min)
+    truth = replace(draw_unit(SPEC, 4), sample_rate_hz=FS, thermal_time_constant_s=10.0, temp_sensor_noise_c=0.0)
+    lab = start_lab(hil_yaml(tmp_path, hil={"speed": 40.0}), truth=truth, seed=5)
+    rig = closing(open_real_rig(lab.config))
+    rate = np.radians(30.0)
+    seq = Sequence("thermal", [Soak(26.0, "z-down", 0.0, settle_tol_c_per_min=0.05, settle_window_s=30.0, max_s=600.0),
+                               Ramp(27.0, 2.0, "z-down"), Rotate("z-down", rate, duration_s=10.0)])
+    session = record(start(seq, rig, Unit(truth.serial, truth.model), "thermal", None), rig)
+    soak, ramp, spin = session.steps
+    temp = session.samples["temp"].to_numpy()
+    at = session.samples["step"].to_numpy()
+    # soak: ends when the unit (10 s lag) has followed the 3 °C step of the air: within 0.05 °C of 26 °C
+    assert abs(temp[at == soak.index][-1] - 26.0) < 0.05
+    assert soak.duration > 36.0  # the air alone needs 3 °C / (5 °C/min) = 36 s
+    # ramp: the host stepped the setpoint from 26 to 27 °C over 30 s, the unit warmed with it
+    assert ramp.duration == pytest.approx(30.0, abs=2.0 / FS)
+    assert lab.sim.state.chamber_target_c == pytest.approx(27.0, abs=0.05)
+    t_ramp = temp[at == ramp.index]
+    assert t_ramp[-1] - t_ramp[0] > 0.5  # 1 °C of air in 30 s, lagged by 10 s: ~0.67 °C
+    # rotation: read-back rate on every sample, angle advancing by rate / fs per sample
+    s = session.samples[at == spin.index]
+    np.testing.assert_allclose(s["table_rate"], rate, atol=np.radians(0.01))
+    steps = np.diff(np.unwrap(s["table_angle"].to_numpy()))
+    assert np.median(steps) == pytest.approx(rate / FS, rel=1e-3)
+    # gyro z (down, z-down mount) sees table rate + Earth rate + bias: within 1 °/s of the table rate
+    assert s["gz"].mean() == pytest.approx(rate, abs=np.radians(1.0))

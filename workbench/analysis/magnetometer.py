@@ -139,14 +139,13 @@ def check_points(mag: np.ndarray, method: str, source: str = "magnetometer data"
     need = MIN_POINTS.get(method, max(MIN_POINTS.values()))
     if len(mag) < need:
         raise AnalysisError(f"{source}: {len(mag)} points, the {method} fit needs at least {need}")
-    _check_units(float(np.median(np.linalg.norm(mag - np.median(mag, axis=0), axis=1))),
-                 float(np.median(np.linalg.norm(mag, axis=1))), source)
+    _check_units(float(np.median(np.linalg.norm(mag - np.median(mag, axis=0), axis=1))), source)
 
 
-def _check_units(radius: float, magnitude: float, source: str) -> None:
-    """Raise if the data's size only makes sense in another unit (gauss, milligauss, nT)."""
+def _check_units(size: float, source: str) -> None:
+    """Raise if the cloud's size (median distance from its centre, µT; independent of the hard
+    iron) only makes sense in another unit (gauss, milligauss, nT)."""
     lo, hi = FIELD_RANGE_UT
-    size = max(radius, magnitude)
     if lo / 3 <= size <= hi * 3:
         return
     for unit, f in _UNIT_FACTORS.items():
@@ -207,9 +206,9 @@ def calibrate(points: MagPoints, method: str = "auto", robust: bool = False, fie
     reference : a geomagnetic model's field at the site (:mod:`mag_reference`): the fitted norm
         (when estimated) and dip are checked against it (warnings)
 
-    The heading error is evaluated with the tilt from the calibrated accelerometer when
-    ``accel_model`` is given, else from the table attitude (so that it measures the
-    magnetometer calibration, not the accelerometer's errors), else from the raw accelerometer.
+    The heading error is evaluated when the attitude is known, with the tilt from the
+    calibrated accelerometer when ``accel_model`` is given, else from the table attitude (so
+    that it measures the magnetometer calibration, not the accelerometer's errors).
     """
     if method not in mag_select.METHODS:
         raise AnalysisError(f"unknown magnetometer method {method!r} (known: {', '.join(mag_select.METHODS)})")

@@ -133,6 +133,8 @@ class _AxisFit:
     scale: float
     jac: list[np.ndarray]
     y_lin: np.ndarray
+    chi2_axes: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    dof_axes: np.ndarray = field(default_factory=lambda: np.zeros(3, int))
     dropped: set[str] = field(default_factory=set)
 
 
@@ -158,7 +160,7 @@ def _gauss_newton(model, beta0: list[np.ndarray], names: list[list[str]], y: np.
     ``model(j, beta_j) -> (h (n,), J (n, p))``. Covariance scaled by max(1, pooled chi2/dof).
     """
     betas, covs, jacs = [], [], []
-    chi2, dof = 0.0, 0
+    chi2_axes, dof_axes = np.zeros(3), np.zeros(3, int)
     y_lin = np.zeros_like(y)
     for j in range(3):
         beta = np.array(beta0[j], float)
@@ -172,13 +174,14 @@ def _gauss_newton(model, beta0: list[np.ndarray], names: list[list[str]], y: np.
         h, jac = model(j, beta)
         a = jac * np.sqrt(w)[:, None]
         covs.append(np.linalg.inv(a.T @ a))
-        chi2 += float(np.sum((y[:, j] - h) ** 2 * w))
-        dof += y.shape[0] - beta.size
+        chi2_axes[j] = float(np.sum((y[:, j] - h) ** 2 * w))
+        dof_axes[j] = y.shape[0] - beta.size
         betas.append(beta)
         jacs.append(jac)
         y_lin[:, j] = y[:, j] - h + jac @ beta
+    chi2, dof = float(chi2_axes.sum()), int(dof_axes.sum())
     scale = max(1.0, chi2 / dof) if dof > 0 else 1.0
-    return _AxisFit(betas, [c * scale for c in covs], names, chi2, dof, scale, jacs, y_lin)
+    return _AxisFit(betas, [c * scale for c in covs], names, chi2, dof, scale, jacs, y_lin, chi2_axes, dof_axes)
 
 
 def _drop_unobservable(designs: list[np.ndarray], names: list[list[str]], var: np.ndarray,
@@ -382,7 +385,7 @@ def fit_accel(session: Session, steps: Sequence[int] | None = None, nonlinearity
 
     fit, used, outliers, w2 = _fit_with_misfits(build, stats, y, position_var(tilt), context, residual_of)
     warnings += w2
-    result = _with_bias_floor(_accel_result(fit), noise)
+    result = _with_bias_wander(_accel_result(fit), fit, noise, position_var(tilt)[used])
     comp = result.model().compensate(y)
     return _replace_fit(result, residuals=_residual_frame(stats, f, y, comp, position_var(tilt) * fit.scale, used),
                         outliers=tuple(stats[i].step.index for i in outliers), warnings=tuple(warnings),
@@ -392,14 +395,27 @@ def fit_accel(session: Session, steps: Sequence[int] | None = None, nonlinearity
                                "nonlinearity_axes": [AXES[j] for j in range(3) if nl_axes[j]]})
 
 
-def _with_bias_floor(fit: TriadFit, noise) -> TriadFit:
-    """The fit with the bias-wander floor added to the bias variance.
+def bias_wander(axes: _AxisFit, noise, var: np.ndarray) -> np.ndarray:
+    """Variance (3,) of the session's mean bias about the unit's long-term bias, SI^2.
 
-    The fit treats the floor as independent from step to step, but bias instability wanders
-    slowly and is largely common to all steps: the session's mean bias departs from the
-    unit's long-term bias by about the floor, whatever the number of positions.
+    The fit treats step errors as independent, but bias instability and rate random walk
+    wander slowly and are largely common to all steps, so the session's mean bias departs
+    from the long-term bias by about their level whatever the number of positions. Their
+    level: the noise floor F of the step means plus, per axis where the scatter between steps
+    is significantly beyond the noise model (chi2_j above its 97.7 % point, as for F), that
+    excess ``(chi2_j / dof_j - 1) * median(var_j)``.
     """
-    return replace(fit, bias_sigma=np.sqrt(fit.bias_sigma**2 + noise.floor**2))
+    excess = np.zeros(3)
+    for j in range(3):
+        d = axes.dof_axes[j]
+        if d > 0 and axes.chi2_axes[j] > chi2_dist.isf(0.023, d):
+            excess[j] = axes.chi2_axes[j] / d - 1.0
+    return noise.floor**2 + excess * np.median(var, axis=0)
+
+
+def _with_bias_wander(fit: TriadFit, axes: _AxisFit, noise, var: np.ndarray) -> TriadFit:
+    """The fit with :func:`bias_wander` added to the bias variance."""
+    return replace(fit, bias_sigma=np.sqrt(fit.bias_sigma**2 + bias_wander(axes, noise, var)))
 
 
 def _noise_notes(noise) -> dict:
@@ -488,7 +504,7 @@ def fit_gyro_static(session: Session, steps: Sequence[int] | None = None, earth_
 
     fit, used, outliers, w2 = _fit_with_misfits(build, stats, y, var, context, residual_of)
     warnings += w2
-    result = _with_bias_floor(_gyro_static_result(fit), noise)
+    result = _with_bias_wander(_gyro_static_result(fit), fit, noise, var[used])
     if np.isnan(result.g_sensitivity_sigma).any():
         warnings.append(f"{context}: g-sensitivity partly not observed by these positions (NaN sigma)")
     comp = result.model().compensate(y, specific_force=f)
@@ -613,7 +629,7 @@ def fit_gyro_rate(session: Session, steps: Sequence[int] | None = None,
     offsets, off_cov = _offsets(fit, len(mounts))
     f_m = np.array([np.reshape(k, (3, 3)).T @ np.array([0.0, 0.0, -session.site.gravity]) for k in mounts])
     bias, bias_s, g, g_s = _bias_from_offsets(offsets, off_cov, f_m)
-    bias_s = np.sqrt(bias_s**2 + noise.floor**2)
+    bias_s = np.sqrt(bias_s**2 + bias_wander(fit, noise, position_var(tilt)[used]))
     result = TriadFit("gyro", bias, m, n[:, 0], g, bias_s, m_s, n_s[:, 0], g_s, asym[:, 0], asym_s[:, 0])
     off_rows = onehot @ offsets
     comp = TriadModel(np.zeros(3), m, n[:, 0]).compensate(y - off_rows - asym[:, 0] * np.abs(w))

@@ -47,7 +47,10 @@ class AhrsConfig:
     east of true north); ``tau_tilt_s``, ``tau_heading_s`` time constants of the complementary
     loops; ``gyro_bias_prior`` 1-sigma rad/s of the Kalman filter's initial bias; the noise
     floors (rad) are added in quadrature to the measurement noise derived from the sensors
-    (vibration, unmodelled errors); ``init_s`` data used for the initial attitude.
+    (vibration, unmodelled errors); ``accel_error`` (m/s^2) and ``mag_error_ut`` (µT) are the
+    1-sigma systematic errors left in the accelerometer and magnetometer samples (e.g. a
+    calibration's residual): they enter the tilt and heading measurement noise as
+    ``accel_error / |f|`` and ``mag_error_ut / |m_h|``; ``init_s`` data used for the initial attitude.
     """
 
     update_interval_s: float = 0.1
@@ -57,6 +60,8 @@ class AhrsConfig:
     gyro_bias_prior: float = np.radians(1.0)
     tilt_noise_floor: float = np.radians(0.01)
     heading_noise_floor: float = np.radians(0.05)
+    accel_error: float = 0.0
+    mag_error_ut: float = 0.0
     init_s: float = 1.0
 
 
@@ -137,7 +142,7 @@ def _run(samples: ImuSamples, latitude: float, config: AhrsConfig, correct, name
     for i0 in range(0, len(samples) - n_blk + 1, n_blk):
         att = prop.propagate(c, with_previous(samples.gyro, i0, i0 + n_blk) - bg, dtheta)
         z, fn, mh = _measure(att, samples.accel[i0:i0 + n_blk], samples.mag[i0:i0 + n_blk], config.declination)
-        dtheta, dbg, sig = correct(z, att.mean(axis=0), fn, mh)
+        dtheta, dbg, sig = correct(z, att.mean(axis=0), fn, mh, samples.gyro[i0:i0 + n_blk].mean(axis=0))
         c = att[-1]  # dtheta is applied at the start of the next block
         bg = bg + dbg
         out_t.append(samples.t[i0 + n_blk - 1])
@@ -162,7 +167,7 @@ def complementary(samples: ImuSamples, latitude: float, config: AhrsConfig = Ahr
     kp, ki = 2.0 / tau, 1.0 / tau ** 2
     nan6 = np.full(6, np.nan)
 
-    def correct(z, c_mean, fn, mh):
+    def correct(z, c_mean, fn, mh, w_mean):
         e = np.array([z[0], z[1], -z[2]])
         return kp * T * e, -T * c_mean.T @ (ki * e), nan6
 
@@ -170,13 +175,17 @@ def complementary(samples: ImuSamples, latitude: float, config: AhrsConfig = Ahr
 
 
 def kalman(samples: ImuSamples, noise: ProcessNoise, latitude: float, config: AhrsConfig = AhrsConfig(),
-           mag_noise_ut: np.ndarray | None = None) -> AhrsResult:
+           mag_noise_ut: np.ndarray | None = None, scale_sigma: float = 0.0) -> AhrsResult:
     """Error-state Kalman filter with gyro-bias states (6 states: attitude error NED, gyro bias body).
 
     Process noise: gyro ARW and bias random walk from ``noise`` (the set's noise block).
     Measurement noise: tilt ``VRW / (g sqrt(T))`` (the block mean of white accelerometer noise),
     heading ``sigma_m / (|m_h| sqrt(n))`` with ``sigma_m`` the magnetometer white noise
     (``mag_noise_ut``, default :func:`mag_white_noise` of the samples), each with its floor.
+    ``scale_sigma`` (dimensionless, 1-sigma) is the gyro scale-factor / misalignment error left in
+    the samples: it turns into an apparent bias ``dM w`` that jumps whenever the rate changes,
+    so each update adds ``(scale_sigma |dw|)^2`` to the bias covariance (dw: change of the mean
+    body rate since the previous block).
     """
     n_blk, _ = _check(samples, config)
     T = n_blk * samples.dt
@@ -194,12 +203,16 @@ def kalman(samples: ImuSamples, noise: ProcessNoise, latitude: float, config: Ah
     qd = np.zeros((6, 6))
     qd[3:, 3:] = q_b
 
-    def correct(z, c_mean, fn, mh):
+    def correct(z, c_mean, fn, mh, w_mean):
+        dw = np.linalg.norm(w_mean - state.get("w", w_mean))
+        state["w"] = w_mean
+        qd[3:, 3:] = q_b + np.eye(3) * (scale_sigma * dw) ** 2
         phi[:3, 3:] = -c_mean * T
         qd[:3, :3] = c_mean @ q_att @ c_mean.T
         P = phi @ state["P"] @ phi.T + qd
-        r_tilt = (vrw / fn) ** 2 / T + config.tilt_noise_floor ** 2
-        r_head = sig_m ** 2 / (mh ** 2 * n_blk) + config.heading_noise_floor ** 2
+        r_tilt = ((vrw / fn) ** 2 / T + config.tilt_noise_floor ** 2 + (config.accel_error / fn) ** 2)
+        r_head = (sig_m ** 2 / (mh ** 2 * n_blk) + config.heading_noise_floor ** 2
+                  + (config.mag_error_ut / mh) ** 2)
         P, dx, _ = sequential_update(P, H, z, np.array([r_tilt, r_tilt, r_head]))
         state["P"] = P
         return dx[:3], dx[3:], np.sqrt(np.diag(P))
