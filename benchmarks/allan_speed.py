@@ -98,9 +98,12 @@ def bench_stream(n: int, memory_n: int, directory: Path) -> None:
         write_parquet(big, n)
         print(f"streaming: wrote {n:.3g} samples ({big.stat().st_size / 1e9:.2f} GB) in {time.perf_counter() - t0:.0f} s")
         s = _child("stream", big, n, Path(tmp))
-        write_parquet(small, memory_n)
+        if memory_n != n:
+            write_parquet(small, memory_n)
+        else:
+            small = big
         m = _child("memory", small, memory_n, Path(tmp))
-        sm = _child("stream", small, memory_n, Path(tmp))
+        sm = s if small == big else _child("stream", small, memory_n, Path(tmp))
         diff = float(np.max(np.abs(np.array(sm["dev"]) / np.array(m["dev"]) - 1)))
         print(f"  stream {n:.3g}: {s['s']:7.1f} s, {n / s['s'] / 1e6:6.1f} M samples/s, peak RSS {s['rss_mb']:.0f} MB")
         print(f"  memory {memory_n:.3g}: {m['s']:7.1f} s, {memory_n / m['s'] / 1e6:6.1f} M samples/s, "

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import json
 import uuid
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -133,7 +133,7 @@ class Session:
     sample_rate_hz: float
     procedure: str
     steps: list[StepRecord]
-    samples: pd.DataFrame
+    samples: pd.DataFrame | None  # None for a lazily loaded session: use stream()
     path: Path | None = None
     options: Mapping[str, object] = field(default_factory=dict)
     rig: str | None = None
@@ -178,8 +178,32 @@ class Session:
         return self._cols(MAG, index)
 
     def _cols(self, cols: list[str], index: int | None) -> np.ndarray:
+        if self.samples is None:
+            raise SessionError(f"{self.name}: loaded lazily (a long record); read it with Session.stream()")
         df = self.samples if index is None else self.step_samples(index)
         return df[cols].to_numpy(float)
+
+    def stream(self, columns: list[str], step: int | None = None, batch_rows: int = 1 << 20) -> Iterator[np.ndarray]:
+        """The samples of ``columns`` (all, or step ``step``) as consecutive (n, C) float blocks.
+
+        Memory is bounded by ``batch_rows`` for a lazily loaded session (Parquet row batches);
+        an in-memory session is sliced.
+        """
+        if self.samples is not None:
+            df = self.samples if step is None else self.step_samples(step)
+            values = df[columns].to_numpy(float)
+            for i in range(0, len(values), batch_rows):
+                yield values[i:i + batch_rows]
+            return
+        import pyarrow.parquet as pq
+
+        pf = pq.ParquetFile(self.path / "samples.parquet")
+        for batch in pf.iter_batches(batch_size=batch_rows, columns=[*columns, "step"]):
+            block = np.column_stack([batch.column(c).to_numpy(zero_copy_only=False) for c in columns]).astype(float)
+            if step is not None:
+                block = block[batch.column("step").to_numpy(zero_copy_only=False) == step]
+            if len(block):
+                yield block
 
     def attitude(self, step: StepRecord, table_angle: float | np.ndarray | None = None) -> Rotation:
         """Body-to-NED rotation at ``table_angle`` (rad; default the step's start angle).
@@ -263,7 +287,7 @@ def parse_manifest(data: Mapping, source: str) -> tuple[dict, list[StepRecord]]:
 
 
 def validate_samples(df: pd.DataFrame, steps: Sequence[StepRecord], sample_rate_hz: float, source: str,
-                     require_complete: bool = True) -> pd.DataFrame:
+                     require_complete: bool = True, check_labels: bool = True) -> pd.DataFrame:
     """Check columns, finiteness, time order and step labels; raise SessionError naming the problem."""
     missing = [c for c in REQUIRED_COLUMNS if c not in df.columns]
     if missing:
@@ -287,6 +311,9 @@ def validate_samples(df: pd.DataFrame, steps: Sequence[StepRecord], sample_rate_
         row = int(np.argmax(gap)) + 1
         raise SessionError(f"{source}: column t: gap of {dt[row - 1]:.4g} s before row {row} (t={t[row]}), "
                            f"sample interval {nominal:.4g} s")
+    _check_units(df, source)
+    if not check_labels:
+        return df
     labels = df["step"].to_numpy()
     known = {s.index for s in steps}
     unknown = set(np.unique(labels)) - known - {-1}
@@ -304,8 +331,54 @@ def validate_samples(df: pd.DataFrame, steps: Sequence[StepRecord], sample_rate_
             if ts[0] < s.t_start - 1.5 * nominal or ts[-1] > s.t_end + 1.5 * nominal:
                 raise SessionError(f"{source}: step {s.index}: samples at t={ts[0]:.3f}..{ts[-1]:.3f} "
                                    f"fall outside the step's t_start..t_end {s.t_start:.3f}..{s.t_end:.3f}")
-    _check_units(df, source)
     return df
+
+
+def validate_parquet_stream(path: Path, steps: Sequence[StepRecord], sample_rate_hz: float,
+                            require_complete: bool = True, batch_rows: int = 1 << 20) -> None:
+    """:func:`validate_samples` batch by batch over a Parquet file, in bounded memory.
+
+    Each batch (with the last sample of the previous one, for time order and gaps) goes
+    through the same checks; step coverage is accumulated across batches.
+    """
+    import pyarrow.parquet as pq
+
+    pf = pq.ParquetFile(path)
+    names = set(pf.schema_arrow.names)
+    missing = [c for c in REQUIRED_COLUMNS if c not in names]
+    if missing:
+        raise SessionError(f"{path}: missing column(s) {', '.join(missing)}")
+    cols = [c for c in REQUIRED_COLUMNS + OPTIONAL_COLUMNS if c in names]
+    seen: dict[int, list[float]] = {}
+    prev: pd.DataFrame | None = None
+    offset = 0
+    for batch in pf.iter_batches(batch_size=batch_rows, columns=cols):
+        df = batch.to_pandas()
+        chunk = df if prev is None else pd.concat([prev, df], ignore_index=True)
+        try:
+            validate_samples(chunk, [], sample_rate_hz, str(path), require_complete=False, check_labels=False)
+        except SessionError as exc:
+            raise SessionError(f"{exc} (in the batch starting at row {offset})") from None
+        lab, t = df["step"].to_numpy(), df["t"].to_numpy(float)
+        for idx in np.unique(lab[lab >= 0]):
+            ts = t[lab == idx]
+            lo_hi = seen.setdefault(int(idx), [ts[0], ts[-1]])
+            lo_hi[0], lo_hi[1] = min(lo_hi[0], ts[0]), max(lo_hi[1], ts[-1])
+        prev, offset = df.iloc[-1:], offset + len(df)
+    known = {s.index for s in steps}
+    unknown = set(seen) - known
+    if unknown:
+        raise SessionError(f"{path}: column step: label(s) {sorted(unknown)[:5]} match no step in session.json")
+    nominal = 1.0 / sample_rate_hz
+    for s in steps:
+        if s.index not in seen:
+            if require_complete:
+                raise SessionError(f"{path}: step {s.index} ({s.kind}) has no samples")
+            continue
+        lo, hi = seen[s.index]
+        if lo < s.t_start - 1.5 * nominal or hi > s.t_end + 1.5 * nominal:
+            raise SessionError(f"{path}: step {s.index}: samples at t={lo:.3f}..{hi:.3f} fall outside the step's "
+                               f"t_start..t_end {s.t_start:.3f}..{s.t_end:.3f}")
 
 
 def _check_units(df: pd.DataFrame, source: str) -> None:
@@ -333,14 +406,23 @@ def read_samples(path: Path) -> pd.DataFrame:
         raise SessionError(f"{path}: cannot read samples ({type(exc).__name__}: {str(exc)[:120]})") from None
 
 
-def load_session(directory: str | Path, require_complete: bool = True) -> Session:
-    """Load and validate a session folder (``session.json`` + ``samples.parquet|csv``)."""
+def load_session(directory: str | Path, require_complete: bool = True, lazy: bool = False) -> Session:
+    """Load and validate a session folder (``session.json`` + ``samples.parquet|csv``).
+
+    ``lazy``: validate a Parquet samples file batch by batch and keep it on disk
+    (``Session.samples`` is None; read it with :meth:`Session.stream`), for records larger
+    than memory.
+    """
     directory = Path(directory)
     data = _load_manifest(directory)
     mpath = directory / "session.json"
     fields, steps = parse_manifest(data, str(mpath))
     spath = samples_file(directory)
-    if spath is not None:
+    df: pd.DataFrame | None
+    if lazy and spath is not None and spath.suffix == ".parquet":
+        validate_parquet_stream(spath, steps, float(fields["sample_rate_hz"]), require_complete)
+        df = None
+    elif spath is not None:
         df = read_samples(spath)
     elif (directory / "parts").is_dir():  # an interrupted recording: its completed steps
         spath = directory / "parts"
@@ -350,7 +432,8 @@ def load_session(directory: str | Path, require_complete: bool = True) -> Sessio
                        ignore_index=True)
     else:
         raise SessionError(f"{directory}: no samples.parquet or samples.csv")
-    validate_samples(df, steps, float(fields["sample_rate_hz"]), str(spath), require_complete)
+    if df is not None:
+        validate_samples(df, steps, float(fields["sample_rate_hz"]), str(spath), require_complete)
     u, s = fields["unit"], fields["site"]
     return Session(
         id=str(fields.get("id") or uuid.uuid5(uuid.NAMESPACE_URL, str(directory.resolve()))),
@@ -360,7 +443,7 @@ def load_session(directory: str | Path, require_complete: bool = True) -> Sessio
         sample_rate_hz=float(fields["sample_rate_hz"]),
         procedure=str(fields.get("procedure", "")),
         steps=steps,
-        samples=df.reset_index(drop=True),
+        samples=None if df is None else df.reset_index(drop=True),
         path=directory,
         options=fields.get("options") or {},
         rig=fields.get("rig"),

@@ -74,3 +74,17 @@ def test_bad_samples_get_errors_naming_the_column(recorded, tmp_path, edit, matc
 def test_bad_manifests(recorded, tmp_path, edit, match):
     with pytest.raises(SessionError, match=match):
         load_session(_copy(recorded, tmp_path, edit_manifest=edit))
+
+
+def test_lazy_loading_streams_the_same_samples_in_bounded_batches(recorded, tmp_path):
+    eager, lazy = load_session(recorded), load_session(recorded, lazy=True)
+    assert lazy.samples is None
+    for step in (0, 1):
+        blocks = list(lazy.stream(["gx", "ay"], step=step, batch_rows=97))
+        assert max(len(b) for b in blocks) <= 97
+        assert np.array_equal(np.vstack(blocks), eager.step_samples(step)[["gx", "ay"]].to_numpy())
+    with pytest.raises(SessionError, match="loaded lazily"):
+        lazy.gyro(0)
+    bad = _copy(recorded, tmp_path, edit_samples=lambda df: _set(df, "az", 700, np.inf))
+    with pytest.raises(SessionError, match="column az: NaN or infinite"):
+        load_session(bad, lazy=True)

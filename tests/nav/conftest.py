@@ -24,7 +24,8 @@ CAL_ERRORS = {  # triad: (bias 1-sigma SI, scale/misalignment 1-sigma)
 }
 
 
-def calibration_from_truth(truth, seed: int = 7, errors: dict = CAL_ERRORS, serial: str | None = None) -> CalibrationSet:
+def calibration_from_truth(truth, seed: int = 7, errors: dict = CAL_ERRORS,
+                           serial: str | None = None) -> CalibrationSet:
     """A calibration set: ``truth``'s models perturbed by ``errors`` (see the module docstring)."""
     rng = np.random.default_rng(seed)
     triads = {}

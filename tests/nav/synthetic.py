@@ -32,6 +32,7 @@ def table_run(mount: Rotation, duration_s: float, seed: int, gyro_bias=np.zeros(
     att = Rotation.from_euler("z", psi[:, None]) * mount
     w_n = earth_rate_ned(LAT) + np.outer(rate, [0.0, 0.0, 1.0])
     gyro = att.inv().apply(w_n) + gyro_bias + rng.normal(0.0, ARW * np.sqrt(FS), (n, 3))
-    accel = att.inv().apply(np.tile(-gravity_ned(LAT), (n, 1))) + accel_bias + rng.normal(0.0, VRW * np.sqrt(FS), (n, 3))
+    accel = (att.inv().apply(np.tile(-gravity_ned(LAT), (n, 1))) + accel_bias
+             + rng.normal(0.0, VRW * np.sqrt(FS), (n, 3)))
     mag = att.inv().apply(np.tile(MAG_NED, (n, 1))) + mag_bias + rng.normal(0.0, mag_noise_ut, (n, 3))
     return ImuSamples(t, gyro, accel, mag, None, 1.0 / FS, (), "synthetic"), att

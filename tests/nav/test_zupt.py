@@ -84,3 +84,15 @@ def test_too_short_and_bad_options_are_refused():
         zupt.align(samples, NOISE, LAT, 0.0)
     with pytest.raises(AnalysisError, match="unknown measurement"):
         zupt.ZuptConfig(measurements=("velocity", "gps"))
+
+
+def test_thesis_attitude_hold_with_a_constant_accel_bias():
+    # eq. 3.57 holds roll, pitch and heading at the frozen solution; with the levelling tilt
+    # modelled (z = dtheta + S db_a) it is consistent while the accel bias is constant
+    bias = np.array([0.01, -0.02, 0.03])
+    samples, att = table_run(MOUNT, 150.0, seed=6, gyro_bias=GYRO_BIAS, accel_bias=bias)
+    cfg = zupt.ZuptConfig(measurements=("position", "velocity", "attitude"))
+    res = zupt.align(samples, NOISE, LAT, float(euler_rph(MOUNT)[2]), config=cfg)
+    np.testing.assert_allclose(attitude_errors(res.attitude, att[0])[-1, :2], _implied_tilt_error(bias), atol=3.5e-4)
+    assert np.all(np.abs(res.gyro_bias[-1] - GYRO_BIAS) < 3 * res.gyro_bias_sigma[-1])
+    assert np.all(res.weights[-30:] > 0)

@@ -130,7 +130,11 @@ def prepare_rate_data(y: np.ndarray, columns: tuple[str, ...] | list[str], sourc
     segments = [y[a:b] for a, b in _runs(~bad_rows)] if bad_rows.any() else [y]
     if gap_policy == "longest" and segments:
         segments = [max(segments, key=len)]
-    segments = [s for s in segments if len(s) >= MIN_SAMPLES] if gap_policy == "split" else segments
+    if gap_policy == "split":
+        short = sum(1 for s in segments if len(s) < MIN_SAMPLES)
+        segments = [s for s in segments if len(s) >= MIN_SAMPLES]
+        if short:
+            warnings.append(f"{source}: {short} gap-free run(s) shorter than {MIN_SAMPLES} samples left out")
     total = sum(len(s) for s in segments)
     if total < MIN_SAMPLES:
         raise AnalysisError(f"{source}: {total} usable samples; Allan statistics need at least {MIN_SAMPLES}")

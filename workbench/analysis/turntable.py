@@ -402,15 +402,19 @@ def bias_wander(axes: _AxisFit, noise, var: np.ndarray) -> np.ndarray:
     wander slowly and are largely common to all steps, so the session's mean bias departs
     from the long-term bias by about their level whatever the number of positions. Their
     level: the noise floor F of the step means plus, per axis where the scatter between steps
-    is significantly beyond the noise model (chi2_j above its 97.7 % point, as for F), that
-    excess ``(chi2_j / dof_j - 1) * median(var_j)``.
+    is significantly beyond the noise model (chi2_j above its 97.7 % point, as for F), the
+    between-step variance ``c_j`` that explains it (Paule-Mandel: ``sum r_i^2 / (var_ij + c_j)
+    = dof_j`` with the fit's residuals ``r``).
     """
-    excess = np.zeros(3)
+    extra = np.zeros(3)
     for j in range(3):
         d = axes.dof_axes[j]
-        if d > 0 and axes.chi2_axes[j] > chi2_dist.isf(0.023, d):
-            excess[j] = axes.chi2_axes[j] / d - 1.0
-    return noise.floor**2 + excess * np.median(var, axis=0)
+        if d <= 0 or axes.chi2_axes[j] <= chi2_dist.isf(0.023, d):
+            continue
+        r2 = (axes.y_lin[:, j] - axes.jac[j] @ axes.beta[j]) ** 2
+        v = var[:, j]
+        extra[j] = brentq(lambda c: float(np.sum(r2 / (v + c))) - d, 0.0, float(r2.max()) * len(r2))
+    return noise.floor**2 + extra
 
 
 def _with_bias_wander(fit: TriadFit, axes: _AxisFit, noise, var: np.ndarray) -> TriadFit:

@@ -36,7 +36,7 @@ def check(config: Path = typer.Argument(..., help="Rig configuration (fixtures/r
 
 
 @rig_app.command("hil")
-def hil(config: Path = typer.Argument(..., help="Rig configuration pointing at 127.0.0.1 (e.g. fixtures/rigs/hil.yaml)."),
+def hil(config: Path = typer.Argument(..., help="Rig configuration on 127.0.0.1 (e.g. fixtures/rigs/hil.yaml)."),
         speed: float = typer.Option(None, "--speed", help="Simulated seconds per wall-clock second "
                                                           "(default: hil.speed of the configuration)."),
         seconds: float = typer.Option(None, "--seconds", help="Stop after this many wall-clock seconds "

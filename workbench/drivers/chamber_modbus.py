@@ -80,7 +80,8 @@ class ModbusChamber:
 
     def _read(self, key: str) -> float:
         reg = self.registers[key]
-        fn = ModbusTcpClient.read_input_registers if reg.get("kind") == "input" else ModbusTcpClient.read_holding_registers
+        fn = ModbusTcpClient.read_input_registers if reg.get("kind") == "input" \
+            else ModbusTcpClient.read_holding_registers
         reply = self._call(f"read of register {key} ({reg['address']})", fn, int(reg["address"]), count=1)
         if not getattr(reply, "registers", None):
             raise RigError(f"{self.where}: malformed reply to the read of register {key} ({reg['address']})")

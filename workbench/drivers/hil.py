@@ -21,6 +21,7 @@ connection too), ``interlock`` (the table reports an interlock); for the stream 
 from __future__ import annotations
 
 import asyncio
+import logging
 import re
 import socket
 import socketserver
@@ -39,6 +40,7 @@ from workbench.rigconfig import RigConfig, rig_config_from_dict
 from workbench.sim.rig import SimRig, move_profile, ramp_profile, wrap_pi
 
 HOST = "127.0.0.1"
+log = logging.getLogger("workbench.hil")
 _TICK_S = 0.01  # wall-clock period of the motion engine
 
 
@@ -53,7 +55,7 @@ def _template_regex(template: str) -> re.Pattern:
     """A regex matching what ``template.format(...)`` produces, numbers captured by field name."""
     out, pos = "", 0
     for m in re.finditer(r"\{(\w+)(?::[^}]*)?\}", template):
-        out += re.escape(template[pos:m.start()]) + (r"(?P<%s>[-+0-9.eE,]+)" % m.group(1))
+        out += re.escape(template[pos:m.start()]) + rf"(?P<{m.group(1)}>[-+0-9.eE,]+)"
         pos = m.end()
     return re.compile("^" + out + re.escape(template[pos:]) + "$")
 
@@ -79,7 +81,10 @@ class LineServer:
             def handle(self) -> None:
                 lab._serve(self.request)
 
-        self.server = _Server((HOST, port), Handler)
+        try:
+            self.server = _Server((HOST, port), Handler)
+        except OSError as exc:
+            raise RigError(f"hil: {device} port {port}: {exc}") from None
         self.port = self.server.server_address[1]
         self._thread = threading.Thread(target=self.server.serve_forever, kwargs={"poll_interval": 0.05},
                                         name=f"hil-{device}", daemon=True)
@@ -175,6 +180,8 @@ class HilLab:
         self._stop = threading.Event()
         self._servers: list = []
         self._stream_clients: set[socket.socket] = set()
+        self._stream_server: socket.socket | None = None
+        self._engine: threading.Thread | None = None
         self.cfg = cfg
         self.config = self._addresses(cfg, free_ports)
 
@@ -203,7 +210,15 @@ class HilLab:
 
     # -- lifecycle ------------------------------------------------------------------------
     def start(self) -> HilLab:
-        """Start the servers and the motion engine; returns self."""
+        """Start the servers and the motion engine; returns self (everything stopped again on failure)."""
+        try:
+            self._start()
+        except BaseException:
+            self.stop()
+            raise
+        return self
+
+    def _start(self) -> None:
         opts = self.config.options
         tc = opts["table_controller"]
         table = LineServer("table", self.table_port, self._table_reply, self.faults,
@@ -223,20 +238,21 @@ class HilLab:
                                             ch.get("write_termination", "\r\n"), ch.get("read_termination", "\r\n")))
         for s in self._servers:
             s.start()
-        self._stream_server = None
         if not self.config.options["imu_stream"]["address"].startswith("udp://"):
-            self._stream_server = socket.create_server((HOST, self.stream_port))
+            try:
+                self._stream_server = socket.create_server((HOST, self.stream_port))
+            except OSError as exc:
+                raise RigError(f"hil: imu stream port {self.stream_port}: {exc}") from None
             self._stream_server.settimeout(0.05)
         self._engine = threading.Thread(target=self._run, name="hil-engine", daemon=True)
         self._engine.start()
-        return self
 
     def stop(self) -> None:
         """Stop the engine and every server, closing all connections (idempotent)."""
         if self._stop.is_set():
             return
         self._stop.set()
-        if getattr(self, "_engine", None) is not None:
+        if self._engine is not None:
             self._engine.join(timeout=2.0)
         for s in self._servers:
             s.stop()
@@ -284,6 +300,12 @@ class HilLab:
         self._new_error = True
 
     def _run(self) -> None:
+        try:
+            self._loop()
+        except Exception:  # the stream stops; the drivers report it, the log says why
+            log.exception("hil: motion engine stopped")
+
+    def _loop(self) -> None:
         tick = max(_TICK_S, 100.0 / (self.fs * self.speed))  # >= 100 samples per tick when fast
         per_tick = self.fs * self.speed * tick
         owed, next_tick = 0.0, time.monotonic()
@@ -307,6 +329,7 @@ class HilLab:
             conn, _ = self._stream_server.accept()
         except (TimeoutError, OSError):
             return
+        conn.settimeout(1.0)  # a client that stops reading is dropped instead of stalling the engine
         self._stream_clients.add(conn)
 
     def _send_frames(self, df) -> None:
@@ -336,8 +359,8 @@ class HilLab:
         address = self.config.options["imu_stream"]["address"]
         if address.startswith("udp://"):
             with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-                for a in range(0, len(data), 8192):
-                    s.sendto(data[a:a + 8192], (HOST, self.stream_port))
+                for datagram in self._datagrams(data, len(samples)):
+                    s.sendto(datagram, (HOST, self.stream_port))
             return
         for c in list(self._stream_clients):
             try:
@@ -345,6 +368,19 @@ class HilLab:
             except OSError:
                 self._stream_clients.discard(c)
                 c.close()
+
+    @staticmethod
+    def _datagrams(data: bytes, frames: int, size: int = 8192) -> list[bytes]:
+        """``data`` (``frames`` equal-length frames or text lines) cut into datagrams of whole frames."""
+        pieces = data.splitlines(keepends=True) if data.endswith(b"\n") else \
+            [data[i:i + len(data) // frames] for i in range(0, len(data), len(data) // frames)]
+        out, cur = [], b""
+        for p in pieces:
+            if cur and len(cur) + len(p) > size:
+                out.append(cur)
+                cur = b""
+            cur += p
+        return out + [cur] if cur else out
 
     # -- table controller -----------------------------------------------------------------
     def _table_reply(self, line: str) -> str | None:

@@ -75,7 +75,8 @@ class FrameFormat:
         fields_ = tuple(s.get("fields") or ())
         bad = [f for f in fields_ if f not in _KNOWN_FIELDS]
         if not fields_ or bad:
-            raise RigError(f"{where}: fields {list(fields_)} (unknown {bad}; known: {', '.join(sorted(_KNOWN_FIELDS))})")
+            raise RigError(f"{where}: fields {list(fields_)} (unknown {bad}; "
+                           f"known: {', '.join(sorted(_KNOWN_FIELDS))})")
         missing = [c for c in ("gx", "gy", "gz", "ax", "ay", "az") if c not in fields_]
         if missing:
             raise RigError(f"{where}: fields lack {', '.join(missing)}")
@@ -211,6 +212,7 @@ class ImuStream:
                 host, port = rest.rsplit(":", 1)
                 if scheme == "udp":
                     link = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+                    link.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 22)  # ride out reader stalls
                     link.bind((host, int(port)))
                 else:
                     link = socket.create_connection((host, int(port)), timeout=self.timeout_s)
@@ -244,7 +246,15 @@ class ImuStream:
                     if tcp:
                         raise ConnectionError("closed by the sender")
                     continue
-                buf = self._split(buf + data, time.monotonic())
+                now = time.monotonic()
+                if is_socket and not tcp:  # a datagram holds whole frames (the last may lack its terminator)
+                    rest = self._split(data, now)
+                    if rest.strip() and self.format.kind == "text":
+                        self._put(rest, now)
+                    elif rest:
+                        self._queue.put(("bad", now, rest, "incomplete frame at the end of a datagram"))
+                else:
+                    buf = self._split(buf + data, now)
         except (serial.SerialException, OSError) as exc:
             self._queue.put(("lost", time.monotonic(), short_error(exc)))
         finally:

@@ -36,7 +36,8 @@ from scipy.spatial.transform import Rotation
 from workbench.earth import earth_rate_ned
 from workbench.errors import AnalysisError
 from workbench.nav.compensate import ImuSamples, ProcessNoise
-from workbench.nav.strapdown import BlockPropagator, coarse_level, euler_rph, from_rph, sequential_update, with_previous
+from workbench.nav.strapdown import (BlockPropagator, coarse_level, euler_rph, from_rph, sequential_update, skew,
+                                     with_previous)
 
 
 @dataclass(frozen=True)
@@ -198,10 +199,9 @@ def kalman(samples: ImuSamples, noise: ProcessNoise, latitude: float, config: Ah
     H[0, 0] = H[1, 1] = 1.0
     H[2, 2] = -1.0
     phi = np.eye(6)
-    phi[:3, :3] -= np.array([[0.0, -w_ie[2], w_ie[1]], [w_ie[2], 0.0, -w_ie[0]], [-w_ie[1], w_ie[0], 0.0]]) * T
+    phi[:3, :3] -= skew(w_ie) * T
     state = {"P": np.diag([1e-4, 1e-4, 1e-2, *np.full(3, config.gyro_bias_prior ** 2)])}
     qd = np.zeros((6, 6))
-    qd[3:, 3:] = q_b
 
     def correct(z, c_mean, fn, mh, w_mean):
         dw = np.linalg.norm(w_mean - state.get("w", w_mean))

@@ -11,7 +11,8 @@ has the exact solution ``C(t) = Exp(-w_ie t) C(0) prod_k Exp(w_k dt)``: the Eart
 rotation of the navigation frame, the gyro term a product of body increments, so a block is
 propagated with one prefix product (log2 n vectorised compositions) instead of a Python loop.
 
-Public: :class:`BlockPropagator`, :func:`with_previous`, :func:`coarse_level`, :func:`from_rph`, :func:`euler_rph`,
+Public: :class:`BlockPropagator`, :func:`with_previous`, :func:`skew`, :func:`coarse_level`,
+:func:`from_rph`, :func:`euler_rph`,
 :func:`attitude_errors`, :func:`rotation_error_ned`, :func:`gain_weight`, :func:`sequential_update`.
 
 References: thesis (shared/seeds/000_...) eq. 3.6, 3.38-3.45, 3.54-3.56, 3.58-3.60;
@@ -25,7 +26,10 @@ from scipy.spatial.transform import Rotation
 
 
 def _prefix_product(m: np.ndarray) -> np.ndarray:
-    """Cumulative products ``m[0], m[0] @ m[1], ..., m[0] @ ... @ m[n-1]`` of (n, 3, 3) matrices (Hillis-Steele scan)."""
+    """Cumulative products ``m[0], m[0] @ m[1], ..., m[0] @ ... @ m[n-1]`` of (n, 3, 3) matrices.
+
+    A Hillis-Steele scan: log2(n) vectorised matrix products.
+    """
     m = np.array(m)
     s = 1
     while s < len(m):
@@ -63,6 +67,11 @@ class BlockPropagator:
         if correction_ned is not None:
             inc = inc[1:]
         return self.earth[: len(w) - 1] @ (c0 @ inc)
+
+
+def skew(v: np.ndarray) -> np.ndarray:
+    """Cross-product matrix ``[v]x`` (3, 3): ``skew(a) @ b = a x b``."""
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
 def coarse_level(accel: np.ndarray) -> tuple[float, float]:

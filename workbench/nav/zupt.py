@@ -49,15 +49,12 @@ from scipy.spatial.transform import Rotation
 from workbench.earth import earth_rate_ned, gravity_ned
 from workbench.errors import AnalysisError
 from workbench.nav.compensate import ImuSamples, ProcessNoise
-from workbench.nav.strapdown import coarse_level, euler_rph, from_rph, BlockPropagator, sequential_update, with_previous
+from workbench.nav.strapdown import (BlockPropagator, coarse_level, euler_rph, from_rph, sequential_update, skew,
+                                     with_previous)
 
 N_STATES = 15
 P, V, A, BA, BG = (slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), slice(12, 15))
 MEASUREMENTS = ("position", "velocity", "attitude", "heading", "zarupt")
-
-
-def _skew(v: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
 @dataclass(frozen=True)
@@ -69,8 +66,8 @@ class ZuptConfig:
     the frozen solution, eq. 3.57), ``heading`` (heading only), ``zarupt`` (paper 001 eq. 35-40);
     ``zarupt_window_s`` the moving-average length of eq. 40; ``gain_scaling`` with ``c0``, ``c1``
     (eq. 46-47; the paper's c1 = 6, but c0 = 3 rather than its 1: with c0 = 1 a third of
-    consistent innovations lose gain and the bias estimates lag); pseudo-measurement 1-sigma noises; bias priors (1-sigma,
-    per axis or scalar); ``heading_sigma`` the external heading's 1-sigma, rad;
+    consistent innovations lose gain and the bias estimates lag); pseudo-measurement 1-sigma
+    noises; bias priors (1-sigma, per axis or scalar); ``heading_sigma`` the external heading's 1-sigma, rad;
     ``max_rejections``: a measurement rejected (weight 0) that many corrections in a row is
     taken unscaled at the next one, since the unit is known to be at rest (without this, one
     knock would leave the mechanised velocity beyond c1 for good and the filter would diverge).
@@ -157,10 +154,10 @@ def _continuous_model(c: np.ndarray, f_n: np.ndarray, w_ie: np.ndarray, noise: P
     """F (15x15) and G Q G^T (15x15) of thesis eq. 3.24, 3.29-3.30 in this module's sign convention."""
     F = np.zeros((N_STATES, N_STATES))
     F[P, V] = np.eye(3)
-    F[V, V] = -2.0 * _skew(w_ie)
-    F[V, A] = -_skew(f_n)
+    F[V, V] = -2.0 * skew(w_ie)
+    F[V, A] = -skew(f_n)
     F[V, BA] = -c
-    F[A, A] = -_skew(w_ie)
+    F[A, A] = -skew(w_ie)
     F[A, BG] = -c
     Q = np.zeros((N_STATES, N_STATES))
     Q[V, V] = c @ np.diag(noise.accel_white ** 2) @ c.T
@@ -271,7 +268,7 @@ def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: fl
         if "zarupt" in use:
             w_avg = np.mean(samples.gyro[max(0, i0 + n_blk - n_avg):i0 + n_blk] - bg, axis=0)
             h = np.zeros((3, N_STATES))
-            h[:, A] = -ci.T @ _skew(w_ie)
+            h[:, A] = -ci.T @ skew(w_ie)
             h[:, BG] = -np.eye(3)
             rows.append(h)
             z.append(-(w_avg - c.T @ w_ie))  # body-frame form of eq. 38: R diagonal
