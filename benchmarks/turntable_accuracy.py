@@ -62,7 +62,8 @@ def run_one(grade: str, seed: int, positions: int, dwell: float) -> dict:
     out["acc_sf_ppm"] = np.abs(np.diag(acc.scale_misalignment - m)).max() * 1e6
     out["acc_mis_mrad"] = np.abs((acc.scale_misalignment - m)[OFF]).max() * 1e3
     out["acc_res_mg"] = np.abs(acc.residuals[["after_x", "after_y", "after_z"]].to_numpy()).max() / MG
-    za = np.concatenate([_z(acc.bias - b, acc.bias_sigma), _z(acc.scale_misalignment - m, acc.scale_misalignment_sigma).ravel()])
+    za = np.concatenate([_z(acc.bias - b, acc.bias_sigma),
+                         _z(acc.scale_misalignment - m, acc.scale_misalignment_sigma).ravel()])
     out["acc_z"] = za.max()
     gs = res.payload["gyro"]
     gb, gm = _effective(truth.gyro, temp)

@@ -160,12 +160,12 @@ def analyze(session: Session, calibration: CalibrationSet | None = None, **optio
     warnings = check_calibration(calibration, session.unit.serial, TRIADS, bool(o["force"]), NAME)
     if not session.has_mag:
         raise AnalysisError(f"{session.name}: samples have no magnetometer columns mx, my, mz (the AHRS needs them)")
-    noise = process_noise(calibration)
+    raw_all = imu_samples(session.samples, session.sample_rate_hz, session.name)
+    noise = process_noise(calibration, fallback=raw_all)
     warnings += list(noise.notes)
     base = ahrs.AhrsConfig(update_interval_s=float(o["update_interval_s"]),
                            declination=declination(session, o["declination_deg"]),
                            tau_tilt_s=float(o["tau_tilt_s"]), tau_heading_s=float(o["tau_heading_s"]))
-    raw_all = imu_samples(session.samples, session.sample_rate_hz, session.name)
     cal_all = compensate(raw_all, calibration, TRIADS)
     blocks, payload = {}, {}
     field = calibration.triads["mag"].field_norm_ut or float(np.median(np.linalg.norm(raw_all.mag, axis=1)))

@@ -137,12 +137,14 @@ def fit_summary(fit: TriadFit, full_scale: float | None = None) -> list[str]:
     t = fit.triad
     lines = []
     if np.isfinite(fit.bias_sigma).any():
-        lines.append(f"{t} bias: " + ", ".join(f"{a} {pm(v, s, b_unit)}" for a, v, s in zip("xyz", fit.bias, fit.bias_sigma)))
+        lines.append(f"{t} bias: " + ", ".join(f"{a} {pm(v, s, b_unit)}"
+                                               for a, v, s in zip("xyz", fit.bias, fit.bias_sigma)))
     d, ds = np.diag(fit.scale_misalignment), np.diag(fit.scale_misalignment_sigma)
     if np.isfinite(ds).any():
         lines.append(f"{t} scale factor: " + ", ".join(f"{a} {pm(v, s, 'ppm', 5)}" for a, v, s in zip("xyz", d, ds)))
         off = ~np.eye(3, dtype=bool)
-        lines.append(f"{t} misalignment: largest |M_ij| {units.fmt(np.abs(fit.scale_misalignment[off]).max(), 'mrad', 3)}, "
+        worst = np.abs(fit.scale_misalignment[off]).max()
+        lines.append(f"{t} misalignment: largest |M_ij| {units.fmt(worst, 'mrad', 3)}, "
                      f"largest sigma {units.fmt(np.nanmax(fit.scale_misalignment_sigma[off]), 'mrad', 2)}")
     if np.isfinite(fit.nonlinearity_sigma).any():
         lines.append(f"{t} nonlinearity (1/SI): " + ", ".join(
@@ -160,7 +162,8 @@ def fit_summary(fit: TriadFit, full_scale: float | None = None) -> list[str]:
         before = np.abs(r[["before_x", "before_y", "before_z"]].to_numpy()).max()
         after = np.abs(r[["after_x", "after_y", "after_z"]].to_numpy()).max()
         res_unit = "mg" if acc else "deg/s"
-        line = f"{t} max residual per step: before {units.fmt(before, res_unit, 3)}, after {units.fmt(after, res_unit, 3)}"
+        line = (f"{t} max residual per step: before {units.fmt(before, res_unit, 3)}, "
+                f"after {units.fmt(after, res_unit, 3)}")
         if full_scale:
             line += f" ({after / full_scale * 100:.3g} % of full scale {units.fmt(full_scale, 'deg/s', 4)})"
         lines.append(line)

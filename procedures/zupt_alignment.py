@@ -145,11 +145,13 @@ def analyze(session: Session, calibration: CalibrationSet | None = None, **optio
     """Raw and calibrated ZUPT alignment at each static position (see the module docstring)."""
     o = _opts(options)
     warnings = check_calibration(calibration, session.unit.serial, ("gyro", "accel"), bool(o["force"]), NAME)
-    noise = process_noise(calibration)
-    warnings += list(noise.notes)
     steps = session.steps_of_kind("static")
     if not steps:
         raise AnalysisError(f"{session.name}: no static step to align on")
+    first = imu_samples(session.step_samples(steps[0].index), session.sample_rate_hz,
+                        f"{session.name}: step {steps[0].index}")
+    noise = process_noise(calibration, fallback=first)
+    warnings += list(noise.notes)
     az = None if o["table_zero_azimuth_deg"] is None else float(np.radians(o["table_zero_azimuth_deg"]))
     measurements = ("position", "velocity", "heading") + (("zarupt",) if o["zarupt"] else ())
     blocks, payload = {}, {"t": [], "labels": [s.label or f"step {s.index}" for s in steps]}

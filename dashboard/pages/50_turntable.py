@@ -100,7 +100,8 @@ with tab_result:
         if turns:
             st.subheader("hand-made turns")
             st.dataframe(pd.DataFrame([{"turn": c.label, "angle [°]": np.degrees(c.angle),
-                                        "closure [°]": np.degrees(c.closure), "wobble rms [°]": np.degrees(c.wobble_rms),
+                                        "closure [°]": np.degrees(c.closure),
+                                        "wobble rms [°]": np.degrees(c.wobble_rms),
                                         "backward [°]": np.degrees(c.backward),
                                         "axis tilt [°]": np.degrees(c.axis_tilt),
                                         "motion before/after [°]": f"{np.degrees(c.motion_before):.3f} / "

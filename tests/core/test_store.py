@@ -59,19 +59,27 @@ store.add_set(a_set(bias=0.5))
     assert fresh.latest("U1").model("accel").bias[0] == pytest.approx(0.01)
 
 
-def test_two_concurrent_writers(tmp_path):
-    url = f"sqlite:///{tmp_path}/w.db"
-    Store(url)
-    code = """
+WRITER = """
 import sys
 from workbench.store import Store
 from tests.core.test_store import a_set
 store = Store(sys.argv[1])
-for k in range(15):
+for k in range(int(sys.argv[3])):
     store.add_set(a_set(bias=float(sys.argv[2]) + k * 1e-3))
 """
+
+
+def run_writers(url: str, processes: int, sets_each: int) -> None:
+    """``processes`` concurrent processes each storing ``sets_each`` versions of unit U1."""
     env = {**os.environ, "PYTHONPATH": os.getcwd()}
-    procs = [subprocess.Popen([sys.executable, "-c", code, url, str(s)], env=env) for s in (1, 2)]
-    assert [p.wait(120) for p in procs] == [0, 0]
+    procs = [subprocess.Popen([sys.executable, "-c", WRITER, url, str(s), str(sets_each)], env=env)
+             for s in range(1, processes + 1)]
+    assert [p.wait(180) for p in procs] == [0] * processes
+
+
+def test_two_concurrent_writers(tmp_path):
+    url = f"sqlite:///{tmp_path}/w.db"
+    Store(url)
+    run_writers(url, 2, 15)
     versions = sorted(i.version for i in Store(url).history("U1"))
     assert versions == list(range(1, 31))

@@ -5,14 +5,12 @@ on 127.0.0.1); each test gets its own database, dropped afterwards.
 """
 
 import os
-import subprocess
-import sys
 import uuid
 
 import pytest
 from sqlalchemy import create_engine, text
 
-from tests.core.test_store import a_set
+from tests.core.test_store import a_set, run_writers
 from workbench.errors import StoreError
 from workbench.store import HEAD_REVISION, Store, schema_revision
 
@@ -53,17 +51,7 @@ def test_older_schema_is_refused_with_the_migration_command(url):
 
 def test_concurrent_writers_from_several_processes(url):
     Store(url)
-    code = """
-import sys
-from workbench.store import Store
-from tests.core.test_store import a_set
-store = Store(sys.argv[1])
-for k in range(10):
-    store.add_set(a_set(bias=float(sys.argv[2]) + k * 1e-3))
-"""
-    env = {**os.environ, "PYTHONPATH": os.getcwd()}
-    procs = [subprocess.Popen([sys.executable, "-c", code, url, str(s)], env=env) for s in (1, 2, 3)]
-    assert [p.wait(180) for p in procs] == [0, 0, 0]
+    run_writers(url, 3, 10)
     assert sorted(i.version for i in Store(url).history("U1")) == list(range(1, 31))
 
 

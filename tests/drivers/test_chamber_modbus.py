@@ -41,7 +41,7 @@ def test_refused_setpoint(chamber):
 def test_timeout(chamber):
     lab, c = chamber
     lab.inject("chamber", "silent")  # the server holds the reply for 5 s
-    with pytest.raises(RigError, match=r"no answer to read of register temperature \(100\)"):
+    with pytest.raises(RigError, match=r"no valid answer to read of register temperature \(100\)"):
         c.temperature()
 
 
@@ -63,3 +63,10 @@ def test_register_map_checked():
         ModbusChamber({"host": "127.0.0.1", "registers": {"temperature": {"address": 1}}})
     with pytest.raises(RigError, match=r"registers.temperature.kind 'coil'"):
         ModbusChamber({"host": "127.0.0.1", "registers": {**REGISTERS, "temperature": {"address": 1, "kind": "coil"}}})
+
+
+def test_malformed_reply(chamber):
+    lab, c = chamber
+    lab.inject("chamber", "garbage")  # the server's reply PDU is mangled
+    with pytest.raises(RigError, match=r"chamber \(modbus 127\.0\.0\.1:\d+\): .*read of register temperature \(100\)"):
+        c.temperature()

@@ -93,7 +93,15 @@ def test_interlock_stops_the_run_with_the_step_named(hil, closing, caplog):
     assert rec.done == 1
 
 
-def test_dropped_link_stops_safely_and_resume_continues(hil, tmp_path, caplog):
+DROPPED = {  # device -> what the error names
+    "table": r"turntable \(TCPIP0::127\.0\.0\.1::\d+::SOCKET\): connection lost during '",
+    "chamber": r"chamber \(socket://127\.0\.0\.1:\d+\): connection lost during 'TEMP\?'",
+    "stream": r"imu stream \(socket://127\.0\.0\.1:\d+\): connection lost after sample \d+",
+}
+
+
+@pytest.mark.parametrize("device", list(DROPPED))
+def test_dropped_link_stops_safely_and_resume_continues(device, hil, tmp_path, caplog):
     lab, path, truth = hil
     cfg = load_rig_config(path)
     out = tmp_path / "session"
@@ -101,13 +109,12 @@ def test_dropped_link_stops_safely_and_resume_continues(hil, tmp_path, caplog):
     def drop_after_step_1(i, n, rec):
         if i == 1:
             lab._set_chamber(40.0)  # the chamber is away from its safe setpoint when the link drops
-            lab.inject("table", "drop")
+            lab.inject(device, "drop")
 
     with caplog.at_level(logging.WARNING, "workbench.rig"), pytest.raises(
-            RigError, match=r"rig hil-acutrol-espec: step 2 \(static, y-up\): .*turntable \(TCPIP0::127\.0\.0\.1::\d+"
-                            r"::SOCKET\): connection lost during '"):
+            RigError, match=r"rig hil-acutrol-espec: step 2 \(static, y-up\): .*" + DROPPED[device]):
         record_procedure(mp, SPEC, truth, cfg, 3, out, {"dwell_s": 2.0}, drop_after_step_1)
-    # made safe and said so: the STOP got through on a fresh link, the chamber went to 23 °C
+    # made safe and said so: the STOP got through (on a fresh link if needed), the chamber went to 23 °C
     assert "run stopped; table stopped; chamber set to its safe setpoint 23 °C" in caplog.text
     assert lab.sim.state.chamber_target_c == 23.0 and lab._hold == 0.0
     # completed steps stay readable

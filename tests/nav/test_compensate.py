@@ -10,7 +10,8 @@ from tests.nav.conftest import calibration_from_truth
 from workbench.calset import CalibrationSet, Unit
 from workbench.errors import AnalysisError, SessionError
 from workbench.grades import draw_unit, load_spec
-from workbench.nav.compensate import check_calibration, compensate, imu_samples, process_noise
+from workbench.nav.compensate import (ImuSamples, check_calibration, compensate, imu_samples, process_noise,
+                                      white_density)
 
 FS = 100.0
 
@@ -98,3 +99,20 @@ def test_process_noise_from_the_noise_block(unit):
         process_noise(no_arw)
     no_bi = CalibrationSet(cal.unit, cal.triads, {"accel": cal.noise["accel"], "gyro": {"arw": [1e-4] * 3}})
     assert any("gyro.rrw not observed" in n for n in process_noise(no_bi).notes)
+
+
+def test_white_density_and_the_fallback_for_a_set_without_noise_terms(unit):
+    rng = np.random.default_rng(5)
+    n, dt, density = 20000, 0.01, np.array([1e-4, 2e-4, 5e-5])
+    x = rng.normal(0.0, 1.0, (n, 3)) * density / np.sqrt(dt)
+    ramp = np.outer(np.linspace(0.0, 1.0, n), [1.0, -2.0, 0.5]) ** 2  # a slowly varying input
+    # MAD of 20000 second differences: relative sigma ~1 %; 5 % leaves 5 sigma
+    np.testing.assert_allclose(white_density(x + ramp, dt), density, rtol=0.05)
+    cal = calibration_from_truth(unit)
+    bare = CalibrationSet(cal.unit, cal.triads, {})
+    with pytest.raises(AnalysisError, match="arw is not observed"):
+        process_noise(bare)
+    samples = ImuSamples(np.arange(n) * dt, x, 2 * x, None, None, dt, (), "static run")
+    pn = process_noise(bare, fallback=samples)
+    np.testing.assert_allclose(pn.gyro_white, density, rtol=0.05)
+    assert any("noise.accel.vrw not in the set: estimated from static run" in note for note in pn.notes)

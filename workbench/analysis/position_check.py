@@ -5,12 +5,13 @@ skips: a static step with motion in it, a rate step shorter than one revolution,
 detection of a position that does not fit the model (a mounting or fixture error), by
 externally studentised (leave-one-out) residuals of a weighted least-squares fit.
 
-Public: :class:`StepStats`, :class:`MeanNoise`, :func:`step_stats`, :func:`motion_in_static`, :func:`mean_variance`,
-:func:`static_mean_variance`, :func:`whole_revolutions`, :func:`whole_revolution_samples`, :func:`deleted_residual_statistics`, :func:`step_name`.
+Public: :class:`StepStats`, :class:`MeanNoise`, :func:`step_stats`, :func:`motion_in_static`,
+:func:`mean_variance`, :func:`static_mean_variance`, :func:`whole_revolutions`,
+:func:`whole_revolution_samples`, :func:`deleted_residual_statistics`, :func:`step_name`.
 
-Noise of a step mean is estimated by batch means (the scatter of the means of ``K`` equal
-blocks divided by sqrt(K)), which also sees the low-frequency noise (bias instability) that
-a sample standard deviation would miss.
+The noise of step means comes from a two-term model (white noise + bias-instability floor)
+fitted to the Allan variance of the steps (:func:`mean_variance`), which also sees the
+low-frequency noise that a sample standard deviation would miss.
 """
 
 from __future__ import annotations
@@ -23,26 +24,22 @@ import pandas as pd
 from workbench.errors import AnalysisError
 from workbench.session import ACCEL, GYRO, Session, StepRecord
 
-_BLOCKS = 10  # batch-means blocks per step
 MOTION_GYRO_FLOOR = np.radians(0.05)  # rad/s; block-mean rate change always accepted below this
 MOTION_ACCEL_FLOOR = 2e-3  # relative change of |block-mean specific force| direction, rad
 
 
 @dataclass(frozen=True)
 class StepStats:
-    """Means of one step's samples with the variance of those means (SI, body frame).
+    """Means of one step's samples (SI, body frame).
 
-    ``gyro``/``accel`` (3,) means; ``gyro_var``/``accel_var`` (3,) variance of each mean from
-    batch means; ``n`` samples used; ``table_rate`` mean encoder rate (rad/s, NaN if the
-    samples have no ``table_rate`` column); ``table_angle`` mean table angle (rad, NaN if
+    ``gyro``/``accel`` (3,) means; ``n`` samples used; ``table_rate`` mean encoder rate
+    (rad/s, NaN if the samples have no ``table_rate`` column); ``table_angle`` mean table angle (rad, NaN if
     absent); ``revolutions`` whole revolutions used (0 for a static step).
     """
 
     step: StepRecord
     gyro: np.ndarray
     accel: np.ndarray
-    gyro_var: np.ndarray
-    accel_var: np.ndarray
     n: int
     table_rate: float
     table_angle: float
@@ -55,19 +52,6 @@ def step_name(step: StepRecord) -> str:
     return f"step {step.index} ({label})"
 
 
-def _batch_var(x: np.ndarray) -> np.ndarray:
-    """Variance of the mean of ``x`` (N, 3) by batch means; falls back to white noise for short steps."""
-    n = x.shape[0]
-    k = _BLOCKS if n >= 20 * _BLOCKS else max(2, n // 20)
-    if n < 4 or k < 2:
-        return np.full(3, np.nan)
-    m = n // k
-    blocks = x[: m * k].reshape(k, m, 3).mean(axis=1)
-    var_batch = blocks.var(axis=0, ddof=1) / k
-    var_white = np.diff(x, axis=0).var(axis=0, ddof=1) / 2.0 / n  # white-noise floor (difference estimator)
-    return np.maximum(var_batch, var_white)
-
-
 def _frame(session: Session, step: StepRecord, settle_s: float) -> pd.DataFrame:
     df = session.step_samples(step.index)
     if len(df) == 0:
@@ -78,7 +62,7 @@ def _frame(session: Session, step: StepRecord, settle_s: float) -> pd.DataFrame:
 
 
 def step_stats(session: Session, step: StepRecord, settle_s: float = 0.0) -> StepStats:
-    """Means and variance of the means of a static step, after dropping the first ``settle_s`` s.
+    """Means of a static step, after dropping the first ``settle_s`` s.
 
     At most 20 % of the step is dropped.
     """
@@ -90,8 +74,7 @@ def _stats(step: StepRecord, df: pd.DataFrame, revolutions: int) -> StepStats:
     g, a = df[GYRO].to_numpy(float), df[ACCEL].to_numpy(float)
     rate = float(df["table_rate"].mean()) if "table_rate" in df.columns else float("nan")
     angle = float(df["table_angle"].mean()) if "table_angle" in df.columns else float("nan")
-    return StepStats(step, g.mean(axis=0), a.mean(axis=0), _batch_var(g), _batch_var(a), len(df), rate, angle,
-                     revolutions)
+    return StepStats(step, g.mean(axis=0), a.mean(axis=0), len(df), rate, angle, revolutions)
 
 
 @dataclass(frozen=True)
@@ -113,10 +96,11 @@ def mean_variance(signals: list[np.ndarray], fs: float) -> MeanNoise:
     blocks, averaged over the signals) over the white part. ``F`` is kept where it exceeds two
     standard errors of that Allan variance (chi-square with the pooled block-difference count;
     2.3 % false alarms on white noise), else the noise is taken as white: a floor of about the
-    white level at ``T/4`` goes undetected in a short session (six 60-s positions). The variance of a mean over ``T_i`` is ``W / T_i + F``:
-    the white part averages down, the bias wander between steps does not. (A rate random walk
-    that grows over the whole session is not seen at ``T/4``; the fits' Birge factor and the
-    residual scatter between positions are what can reveal it.)
+    white level at ``T/4`` goes undetected in a short session (six 60-s positions). The
+    variance of a mean over ``T_i`` is ``W / T_i + F``: the white part averages down, the bias
+    wander between steps does not. (A rate random walk that grows over the whole session is
+    not seen at ``T/4``; the scatter between positions is what can reveal it, see
+    :func:`workbench.analysis.turntable.bias_wander`.)
     """
     n_min = min(len(x) for x in signals)
     m = n_min // 4

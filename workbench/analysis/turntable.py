@@ -106,9 +106,11 @@ class TriadFit:
     def to_dict(self) -> dict:
         """JSON-ready summary (SI, NaN -> None), without the residual table."""
         def arr(a):
-            return None if a is None else [[None if not np.isfinite(v) else float(v) for v in row]
-                                           for row in np.atleast_2d(a)] if np.ndim(a) == 2 else \
-                [None if not np.isfinite(v) else float(v) for v in np.asarray(a, float)]
+            if a is None:
+                return None
+            a = np.asarray(a, float)
+            return [arr(row) for row in a] if a.ndim == 2 else [float(v) if np.isfinite(v) else None for v in a]
+
         out = {"triad": self.triad}
         for name in ("bias", "scale_misalignment", "nonlinearity", "g_sensitivity", "asymmetry"):
             out[name] = arr(getattr(self, name))
@@ -206,13 +208,17 @@ def _drop_unobservable(designs: list[np.ndarray], names: list[list[str]], var: n
                     dropped.add(names[j][k])
         if not _full_rank(x[:, keep], var[:, j]):
             raise AnalysisError(f"{context}: the steps cannot observe the {AXES[j]} axis "
-                                f"({x.shape[0]} steps for {len(keep)} parameters: {', '.join(names[j][k] for k in keep)})")
+                                f"({x.shape[0]} steps for {len(keep)} parameters: "
+                                f"{', '.join(names[j][k] for k in keep)})")
         keep_all.append(keep)
     return keep_all, dropped
 
 
-def _misfits(fit: _AxisFit, var: np.ndarray, stats: list[StepStats], residual_of, unit: str) -> tuple[list[int], str]:
-    """Rows that do not fit (leave-one-out test), and a warning naming the steps ('' if none)."""
+def _misfits(fit: _AxisFit, var: np.ndarray, stats: list[StepStats], residual_of) -> tuple[list[int], str]:
+    """Rows that do not fit (leave-one-out test), and a warning naming the steps ('' if none).
+
+    ``residual_of(i)`` describes row ``i``'s residual for the warning (lab units).
+    """
     n = len(stats)
     t = deleted_residual_statistics(fit.jac, fit.y_lin, var)
     limit = chi2_dist.isf(MISFIT_P / n, 3)
@@ -281,9 +287,9 @@ def _angle(s: StepStats) -> float:
     return s.table_angle if np.isfinite(s.table_angle) else s.step.table_angle
 
 
-def _sigma_matrix(fit: _AxisFit, prefix: str, width: int, prior: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-    """Values and sigmas (3, width) of columns named ``prefix{k}`` (NaN sigma where not kept)."""
-    val, sig = np.full((3, width), prior), np.full((3, width), np.nan)
+def _sigma_matrix(fit: _AxisFit, prefix: str, width: int) -> tuple[np.ndarray, np.ndarray]:
+    """Values and sigmas (3, width) of columns named ``prefix{k}`` (0 and NaN sigma where not kept)."""
+    val, sig = np.zeros((3, width)), np.full((3, width), np.nan)
     for j in range(3):
         for k in range(width):
             name = f"{prefix}{k}" if width > 1 else prefix
@@ -297,7 +303,7 @@ def _fit_with_misfits(build, stats: list[StepStats], y: np.ndarray, var: np.ndar
                       residual_of) -> tuple[_AxisFit, np.ndarray, list[int], list[str]]:
     """Fit, test for rows that do not fit, refit without a single clearly identified misfit."""
     fit = build(np.ones(len(stats), bool))
-    bad, msg = _misfits(fit, var, stats, residual_of(fit, np.ones(len(stats), bool)), context)
+    bad, msg = _misfits(fit, var, stats, residual_of(fit))
     used = np.ones(len(stats), bool)
     warnings = []
     if len(bad) == 1:
@@ -380,14 +386,14 @@ def fit_accel(session: Session, steps: Sequence[int] | None = None, nonlinearity
         warnings.append(f"{context}: positions scatter beyond the sensor noise: a tilt of {1e3 * tilt:.3g} mrad "
                         f"({np.degrees(tilt):.2g}°) 1-sigma per position is estimated (hand-made or loose fixture)")
 
-    def residual_of(fit, rows):
+    def residual_of(fit):
         return lambda i: f"{1e3 * np.linalg.norm(_accel_after(fit, y[i:i + 1], f[i:i + 1])) / 9.80665:.3g} mg"
 
     fit, used, outliers, w2 = _fit_with_misfits(build, stats, y, position_var(tilt), context, residual_of)
     warnings += w2
     result = _with_bias_wander(_accel_result(fit), fit, noise, position_var(tilt)[used])
     comp = result.model().compensate(y)
-    return _replace_fit(result, residuals=_residual_frame(stats, f, y, comp, position_var(tilt) * fit.scale, used),
+    return replace(result, residuals=_residual_frame(stats, f, y, comp, position_var(tilt) * fit.scale, used),
                         outliers=tuple(stats[i].step.index for i in outliers), warnings=tuple(warnings),
                         chi2_reduced=fit.chi2 / fit.dof if fit.dof else float("nan"), dof=fit.dof,
                         notes={"gravity_m_s2": g, "positions": int(used.sum()), "position_sigma_rad": tilt,
@@ -456,10 +462,6 @@ def _accel_result(fit: _AxisFit) -> TriadFit:
     return TriadFit("accel", bias[:, 0], m, n[:, 0], None, bias_s[:, 0], m_s, n_s[:, 0], None)
 
 
-def _replace_fit(fit: TriadFit, **changes) -> TriadFit:
-    return replace(fit, **changes)
-
-
 # -- gyro, static ------------------------------------------------------------------------------
 
 def fit_gyro_static(session: Session, steps: Sequence[int] | None = None, earth_rate: str = "auto",
@@ -503,7 +505,7 @@ def fit_gyro_static(session: Session, steps: Sequence[int] | None = None, earth_
 
         return _gauss_newton(model, [np.zeros(len(n)) for n in names], names, y[rows], var[rows], iterations=2)
 
-    def residual_of(fit, rows):
+    def residual_of(fit):
         return lambda i: f"{np.degrees(np.linalg.norm(y[i] - ref[i] - _gyro_static_result(fit).bias)) * 3600:.3g} °/h"
 
     fit, used, outliers, w2 = _fit_with_misfits(build, stats, y, var, context, residual_of)
@@ -519,11 +521,13 @@ def fit_gyro_static(session: Session, steps: Sequence[int] | None = None, earth_
     else:
         notes["earth_rate"] = "not modelled: bias and g-sensitivity absorb the Earth rate (up to 15.04 °/h)"
         if worst_sigma < EARTH_RATE:
-            warnings.append(f"{context}: Earth rate not modelled ({'table zero azimuth unknown' if not az_known else 'earth_rate=ignore'}): "
-                            f"bias (sigma {np.degrees(worst_sigma) * 3600:.2g} °/h) and g-sensitivity absorb up to 15 °/h")
+            why = "table zero azimuth unknown" if not az_known else "earth_rate=ignore"
+            warnings.append(f"{context}: Earth rate not modelled ({why}): bias (sigma "
+                            f"{np.degrees(worst_sigma) * 3600:.2g} °/h) and g-sensitivity absorb up to 15 °/h")
     if worst_sigma > EARTH_RATE:
-        notes["earth_rate"] += f"; the bias noise ({np.degrees(worst_sigma) * 3600:.3g} °/h) exceeds the Earth rate at this grade"
-    return _replace_fit(result, residuals=_residual_frame(stats, ref, y, comp, var * fit.scale, used),
+        notes["earth_rate"] += (f"; the bias noise ({np.degrees(worst_sigma) * 3600:.3g} °/h) exceeds the Earth rate "
+                                "at this grade")
+    return replace(result, residuals=_residual_frame(stats, ref, y, comp, var * fit.scale, used),
                         outliers=tuple(stats[i].step.index for i in outliers), warnings=tuple(warnings),
                         chi2_reduced=fit.chi2 / fit.dof if fit.dof else float("nan"), dof=fit.dof, notes=notes)
 
@@ -617,7 +621,7 @@ def fit_gyro_rate(session: Session, steps: Sequence[int] | None = None,
         fit.dropped = dropped
         return fit
 
-    def residual_of(fit, rows):
+    def residual_of(fit):
         return lambda i: f"{np.degrees(abs(y[i] - w[i]).max()):.3g} °/s before compensation"
 
     tilt = _position_sigma(build, position_sigma, len(stats), context)
@@ -643,7 +647,7 @@ def fit_gyro_rate(session: Session, steps: Sequence[int] | None = None,
     if np.isnan(bias_s).all():
         notes["bias"] = "not observed: the rate steps' mounts cannot separate bias from g-sensitivity"
     notes.update({"position_sigma_rad": tilt, **_noise_notes(noise)})
-    return _replace_fit(result, residuals=_residual_frame(stats, w, y, comp, position_var(tilt) * fit.scale, used),
+    return replace(result, residuals=_residual_frame(stats, w, y, comp, position_var(tilt) * fit.scale, used),
                         outliers=tuple(stats[i].step.index for i in outliers), warnings=tuple(warnings),
                         chi2_reduced=fit.chi2 / fit.dof if fit.dof else float("nan"), dof=fit.dof, notes=notes)
 

@@ -73,7 +73,7 @@ class ModbusChamber:
             reply = fn(self._client, *args, device_id=self.device_id, **kwargs)
         except ModbusException as exc:
             self.close()
-            raise RigError(f"{self.where}: no answer to {what} ({short_error(exc)})") from None
+            raise RigError(f"{self.where}: no valid answer to {what} ({short_error(exc)})") from None
         if reply.isError():
             raise RigError(f"{self.where}: {what} refused by the controller ({reply})")
         return reply

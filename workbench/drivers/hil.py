@@ -491,8 +491,14 @@ class _ModbusChamberServer:
                                                             datatype=DataType.REGISTERS)], action=self._action)
         self._thread.start()
 
+        def trace_packet(sending: bool, data: bytes) -> bytes:
+            """Replies mangled under the ``garbage`` fault (MBAP header kept, PDU replaced)."""
+            if sending and self.lab.faults["chamber"] == "garbage":
+                return data[:7] + bytes([0x04, 0x7F]) + b"\xff" * (len(data) - 9)
+            return data
+
         async def serve():
-            self.server = ModbusTcpServer(device, address=(HOST, self.port))
+            self.server = ModbusTcpServer(device, address=(HOST, self.port), trace_packet=trace_packet)
             await self.server.serve_forever(background=True)
 
         asyncio.run_coroutine_threadsafe(serve(), self._loop).result(timeout=5.0)

@@ -8,7 +8,7 @@ eq. 3.50-3.53 asks: "the diagonal elements of Q shall be evaluated through an Al
 analysis".
 
 Public: :class:`ImuSamples`, :func:`imu_samples`, :func:`compensate`, :func:`check_calibration`,
-:class:`ProcessNoise`, :func:`process_noise`.
+:class:`ProcessNoise`, :func:`process_noise`, :func:`white_density`.
 
 Units: SI throughout (rad/s, m/s^2, µT, °C, s); body frame x fwd, y right, z down.
 """
@@ -157,11 +157,26 @@ class ProcessNoise:
     notes: tuple[str, ...] = ()
 
 
-def process_noise(calibration: CalibrationSet, bias_correlation_s: float = 600.0) -> ProcessNoise:
+def white_density(x: np.ndarray, dt: float) -> np.ndarray:
+    """White-noise density (3,) of samples (N, 3) at interval ``dt``: SI unit per √Hz.
+
+    From second differences, which cancel a slowly varying input (a turning table, a drifting
+    bias): ``var(x[k+1] - 2 x[k] + x[k-1]) = 6 sigma^2``, with a robust (MAD) sigma so the
+    rate changes of a table sequence do not count; density = ``sigma sqrt(dt)``.
+    """
+    d2 = np.diff(np.asarray(x, float), n=2, axis=0)
+    mad = np.median(np.abs(d2 - np.median(d2, axis=0)), axis=0)
+    return 1.4826 * mad / np.sqrt(6.0) * np.sqrt(dt)
+
+
+def process_noise(calibration: CalibrationSet, bias_correlation_s: float = 600.0,
+                  fallback: ImuSamples | None = None) -> ProcessNoise:
     """Process-noise densities from the set's noise block (thesis eq. 3.50-3.53).
 
-    White noise: gyro ARW, accelerometer VRW (required; AnalysisError naming the term when
-    not observed). Bias random walk: the rate random walk ``rrw`` plus the bias instability
+    White noise: gyro ARW, accelerometer VRW. When the set did not observe one (no Allan
+    analysis in its provenance) it is estimated from ``fallback`` samples with
+    :func:`white_density` and said in ``notes``; without fallback samples AnalysisError names
+    the term. Bias random walk: the rate random walk ``rrw`` plus the bias instability
     spread over ``bias_correlation_s`` (a random walk reaching the bias-instability level
     after that time: density ``B / sqrt(tau)``), combined in quadrature; a term that is not
     observed counts as zero and is named in ``notes``.
@@ -171,8 +186,13 @@ def process_noise(calibration: CalibrationSet, bias_correlation_s: float = 600.0
     for triad, term in (("gyro", "arw"), ("accel", "vrw")):
         v = calibration.noise_term(triad, term)
         if not np.all(np.isfinite(v)):
-            raise AnalysisError(f"calibration set {calibration.id}: noise.{triad}.{term} is not observed "
-                                "(run an Allan-variance procedure first)")
+            if fallback is None:
+                raise AnalysisError(f"calibration set {calibration.id}: noise.{triad}.{term} is not observed "
+                                    "(run an Allan-variance procedure first)")
+            est = white_density(getattr(fallback, triad), fallback.dt)
+            v = np.where(np.isfinite(v), v, est)
+            notes.append(f"noise.{triad}.{term} not in the set: estimated from {fallback.source} "
+                         f"(second differences): {np.array2string(est, precision=3)} SI")
         white[triad] = v
     walk = {}
     for triad in ("gyro", "accel"):
