@@ -61,4 +61,5 @@ def rz(angle: float | np.ndarray) -> Rotation:
     Applied to a vector expressed in the rotated frame it gives the vector in the
     fixed frame (e.g. table-top frame to NED when ``angle`` is the table azimuth).
     """
-    return Rotation.from_euler("z", angle)
+    angle = np.asarray(angle, float)
+    return Rotation.from_euler("z", angle[:, None] if angle.ndim == 1 else angle)

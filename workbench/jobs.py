@@ -23,7 +23,8 @@ from workbench.rigconfig import RigConfig, load_rig_config
 from workbench.runner import Progress, record, reopen, rig_state_for_resume, start
 from workbench.session import Session
 
-CALIBRATING = ("multiposition", "rate", "magnetometer")  # run first when a validation needs a set
+# run first when a validation needs a set, with their options (a shorter Allan record)
+CALIBRATING = {"multiposition": {}, "rate": {}, "magnetometer": {}, "allan": {"duration_s": 1800.0, "soak": False}}
 
 
 def open_rig(cfg: RigConfig, truth, seed: int, state=None):

@@ -241,3 +241,18 @@ def test_rate_step_shorter_than_a_revolution_named():
     s = synth_session(steps, acc, gyr, 5e-3, 1e-3, seed=2)
     with pytest.raises(AnalysisError, match="step 6 .*less than one revolution"):
         fit_gyro_rate(s)
+
+
+def test_mis_mount_in_six_positions_names_the_pair():
+    """With six positions an up/down pair has identical deleted residuals: both are named, none dropped."""
+    acc, gyr = truth_models()
+    s = synth_session(static_steps(SIX, 5.0), acc, gyr, 5e-3, 1e-4, seed=7)
+    tilted = synth_session(static_steps([Rotation.from_euler("x", 3, degrees=True).as_matrix() @ mount_matrix("y-up")],
+                                        5.0), acc, gyr, 5e-3, 1e-4, seed=8)
+    sel = s.samples["step"] == 2
+    for c in ("ax", "ay", "az"):
+        s.samples.loc[sel, c] = tilted.samples[c].to_numpy()
+    fit = fit_accel(s, nonlinearity="none", settle_s=0.0)
+    assert set(fit.outliers) == {2, 3}
+    assert any("step 2 (y-up)" in w and "step 3 (y-down)" in w and "cannot tell" in w for w in fit.warnings)
+    assert fit.residuals["used"].all()

@@ -124,7 +124,7 @@ def test_frames_that_do_not_parse(stream):
 
 def test_stream_that_stops(stream):
     s = stream(FrameFormat.from_settings(BINARY, "imu").encode(_values(2)))
-    with pytest.raises(RigError, match=r"imu \(socket://127\.0\.0\.1:\d+\): no frame for 0\.3 s \(after sample 1002\)"):
+    with pytest.raises(RigError, match=r"imu \(socket://127\.0\.0\.1:\d+\): no frame for 0\.3 s \(after sample 1001\)"):
         s.take(3)
 
 

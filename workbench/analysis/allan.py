@@ -244,11 +244,11 @@ def _diff_sums(x, lags, order, i0, i1, out):  # pragma: no cover - compiled
 
 @numba.njit(cache=True, nogil=True)
 def _mdev_sums(x, lags, j0, j1, v0, run, out):  # pragma: no cover - compiled
-    """Modified-Allan sums as allantools' recursion, resumable across windows.
+    """Modified-Allan sums by allantools' recursion (same order of operations).
 
     For lag m the inner sum at j is v_j = v0 + run_j, run_j = run_{j-1} + (x[j+3m-1] - 3x[j+2m-1]
-    + 3x[j+m-1] - x[j-1]); j runs over [j0[k], j1[k]) of the window (j = 0 is the first term,
-    v0 its value). ``v0``, ``run`` (K, C) carry the state; ``out`` (K, C) accumulates v_j^2.
+    + 3x[j+m-1] - x[j-1]); j runs over [j0[k], j1[k]) (j = 0 is the first term, v0 its value).
+    ``v0``, ``run`` (K, C) hold the state; ``out`` (K, C) accumulates v_j^2 in blocks.
     """
     n_ch = x.shape[0]
     for k in range(lags.shape[0]):

@@ -43,6 +43,7 @@ from workbench.analysis.position_check import (
     StepStats, deleted_residual_statistics, mean_variance, motion_in_static, static_mean_variance, step_name,
     step_stats, whole_revolution_samples, whole_revolutions,
 )
+from workbench import units
 from workbench.calset import TriadCalibration
 from workbench.earth import EARTH_RATE, earth_rate_ned
 from workbench.errors import AnalysisError
@@ -387,7 +388,7 @@ def fit_accel(session: Session, steps: Sequence[int] | None = None, nonlinearity
                         f"({np.degrees(tilt):.2g}°) 1-sigma per position is estimated (hand-made or loose fixture)")
 
     def residual_of(fit):
-        return lambda i: f"{1e3 * np.linalg.norm(_accel_after(fit, y[i:i + 1], f[i:i + 1])) / 9.80665:.3g} mg"
+        return lambda i: units.fmt(np.linalg.norm(_accel_after(fit, y[i:i + 1], f[i:i + 1])), "mg", 3)
 
     fit, used, outliers, w2 = _fit_with_misfits(build, stats, y, position_var(tilt), context, residual_of)
     warnings += w2
@@ -506,7 +507,7 @@ def fit_gyro_static(session: Session, steps: Sequence[int] | None = None, earth_
         return _gauss_newton(model, [np.zeros(len(n)) for n in names], names, y[rows], var[rows], iterations=2)
 
     def residual_of(fit):
-        return lambda i: f"{np.degrees(np.linalg.norm(y[i] - ref[i] - _gyro_static_result(fit).bias)) * 3600:.3g} °/h"
+        return lambda i: units.fmt(np.linalg.norm(y[i] - ref[i] - _gyro_static_result(fit).bias), "deg/h", 3)
 
     fit, used, outliers, w2 = _fit_with_misfits(build, stats, y, var, context, residual_of)
     warnings += w2
@@ -622,7 +623,7 @@ def fit_gyro_rate(session: Session, steps: Sequence[int] | None = None,
         return fit
 
     def residual_of(fit):
-        return lambda i: f"{np.degrees(abs(y[i] - w[i]).max()):.3g} °/s before compensation"
+        return lambda i: f"{units.fmt(np.abs(y[i] - w[i]).max(), 'deg/s', 3)} before compensation"
 
     tilt = _position_sigma(build, position_sigma, len(stats), context)
     fit, used, outliers, w2 = _fit_with_misfits(build, stats, y, position_var(tilt), context, residual_of)

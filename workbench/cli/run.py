@@ -168,7 +168,7 @@ def _calibrate_first(spec, truth, cfg, seed, out_dir: Path):
     out.print(f"calibrating the simulated unit first ({', '.join(CALIBRATING)})")
     with _progress_bar() as bar:
         res = run_campaign(spec, truth, cfg, seed, out_dir / "calibration", None, lambda n: _tracker(bar, n),
-                           only=list(CALIBRATING))
+                           only=list(CALIBRATING), options=CALIBRATING)
     return res.calibration
 
 

@@ -44,6 +44,7 @@ from workbench.errors import RigError
 SIGNALS = ("gx", "gy", "gz", "ax", "ay", "az", "mx", "my", "mz", "temp")
 _KNOWN_FIELDS = {*SIGNALS, "counter", "time", "_"}
 _TIME_SOURCES = ("counter", "time", "host")
+_READ = 65536  # bytes per read of the link
 
 
 def xor8(data: bytes) -> int:
@@ -201,7 +202,6 @@ class ImuStream:
         self._queue: queue.Queue = queue.Queue()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
-        self._pending: list = []
 
     # -- link -------------------------------------------------------------------------
     def open(self) -> None:
@@ -238,13 +238,15 @@ class ImuStream:
         tcp = is_socket and link.type == socket.SOCK_STREAM
         try:
             while not self._stop.is_set():
+                started = time.monotonic()
                 try:
-                    data = link.recv(65536) if is_socket else link.read(4096)
+                    data = link.recv(_READ) if is_socket else link.read(_READ)
                 except TimeoutError:
-                    continue
+                    data = None
                 if not data:
-                    if tcp:
+                    if tcp and data is not None:
                         raise ConnectionError("closed by the sender")
+                    self._queue.put(("mark", started, False))
                     continue
                 now = time.monotonic()
                 if is_socket and not tcp:  # a datagram holds whole frames (the last may lack its terminator)
@@ -255,6 +257,8 @@ class ImuStream:
                         self._queue.put(("bad", now, rest, "incomplete frame at the end of a datagram"))
                 else:
                     buf = self._split(buf + data, now)
+                # everything that had arrived when this read started has now been queued (unless it filled up)
+                self._queue.put(("mark", started, len(data) == _READ))
         except (serial.SerialException, OSError) as exc:
             self._queue.put(("lost", time.monotonic(), short_error(exc)))
         finally:
@@ -293,14 +297,12 @@ class ImuStream:
         self.frames = self.dropped = self.corrupt = 0
         return counts
 
-    def _next_item(self, block: bool):
+    def _next_item(self):
         try:
-            return self._queue.get(timeout=self.timeout_s) if block else self._queue.get_nowait()
+            return self._queue.get(timeout=self.timeout_s)
         except queue.Empty:
-            if block:
-                raise RigError(f"{self.where}: no frame for {self.timeout_s:g} s "
-                               f"(after sample {self.next_sample})") from None
-            return None
+            raise RigError(f"{self.where}: no frame for {self.timeout_s:g} s (after sample "
+                           f"{self.next_sample - 1})") from None
 
     def _accept(self, values: np.ndarray, host_t: float) -> int:
         """Session sample index of a good frame; checks the counter / device time."""
@@ -326,19 +328,24 @@ class ImuStream:
         return index
 
     def take(self, n: int | None = None, until_host_t: float | None = None) -> Block:
-        """The next ``n`` frames (blocking), or every frame that arrived before ``until_host_t``.
+        """The next ``n`` frames, or every frame that had reached the host by ``until_host_t`` (monotonic s).
 
-        RigError when the stream stops, a frame does not parse beyond ``max_corrupt_frames``,
-        the timestamps jump, or the link is lost.
+        With ``until_host_t`` it waits until the reader has read the link once after that
+        instant, so frames still in the operating system's buffers are included however far
+        the reader lags. RigError when the stream stops, a frame does not parse beyond
+        ``max_corrupt_frames``, the timestamps jump, or the link is lost.
         """
         idx, host, rows = [], [], []
-        while (n is not None and len(rows) < n) or (n is None and until_host_t is not None):
-            item = self._pending.pop(0) if self._pending else self._next_item(block=n is not None)
-            if item is None:
-                break
-            if until_host_t is not None and item[1] >= until_host_t:
-                self._pending.insert(0, item)
-                break
+        deadline = time.monotonic() + self.timeout_s
+        while until_host_t is not None or len(rows) < n:
+            item = self._next_item()
+            if item[0] == "mark":
+                if until_host_t is not None and item[1] >= until_host_t and not item[2]:
+                    break
+                if time.monotonic() > deadline:
+                    raise RigError(f"{self.where}: no frame for {self.timeout_s:g} s (after sample "
+                                   f"{self.next_sample - 1})")
+                continue
             if item[0] == "lost":
                 raise RigError(f"{self.where}: connection lost after sample {self.next_sample - 1} ({item[2]})")
             if item[0] == "bad":
@@ -352,6 +359,7 @@ class ImuStream:
             host.append(item[1])
             rows.append(item[2])
             self.frames += 1
+            deadline = time.monotonic() + self.timeout_s
         data = np.array(rows).reshape(len(rows), len(self.format.fields))
         cols = {f: data[:, i] for i, f in enumerate(self.format.fields) if f in SIGNALS}
         return Block(np.asarray(idx, float) / self.fs, np.asarray(host, float), cols)
