@@ -1,9 +1,11 @@
-"""Throughput of the virtual sensor (workbench.sim.sensor.VirtualIMU), sensor only (no rig).
+"""Throughput of the virtual lab: the virtual sensor alone, and the whole simulated rig.
 
 Prints, per grade, the wall time to simulate one hour at the grade's rate in one call and in
 60 s chunks (as the runner records step by step), and the throughput in samples/s (one
 sample = one time instant of all the unit's channels). The target of issue 3 is one hour of
-a 6-axis IMU at 100 Hz in under 2 s.
+a 6-axis IMU at 100 Hz in under 2 s. Then the whole rig (``workbench.sim.simulate``: table
+motion, chamber, truth, sensor, step records) for a six-position tumble of one hour in total,
+in memory, in samples/s.
 
     /work/venv/bin/python benchmarks/sim_throughput.py [--hours 1.0] [--repeat 3]
 """
@@ -65,6 +67,21 @@ def main() -> None:
         (w_one, c_one), (w_chunk, c_chunk) = _best(one_call, args.repeat), _best(chunked, args.repeat)
         print(f"{grade:20s} {3 * len(truth.triads):3d} {spec.sample_rate_hz:8.0f} {w_one:8.3f} ({c_one:6.3f}) "
               f"{w_chunk:11.3f} ({c_chunk:6.3f}) {n / c_one:16.3e}")
+
+
+    from workbench.sequence import Hold, Sequence
+    from workbench.sim import simulate
+
+    print(f"\n{'whole rig (simulate)':24s} {'samples':>9s} {'wall s':>8s} {'cpu s':>8s} {'samples/s (cpu)':>16s}")
+    for grade in ("industrial_mems", "consumer_9axis"):
+        seq = Sequence("tumble", [Hold(m, 0.0, args.hours * 600.0) for m in
+                                  ("x-up", "x-down", "y-up", "y-down", "z-up", "z-down")])
+        simulate(seq, grade, seed=1)  # warm-up (filter design, imports)
+        t0, c0 = time.perf_counter(), time.process_time()
+        session, _ = simulate(seq, grade, seed=2)
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+        n = len(session.samples)
+        print(f"{grade:24s} {n:9d} {wall:8.2f} {cpu:8.2f} {n / cpu:16.3e}")
 
 
 if __name__ == "__main__":

@@ -48,6 +48,7 @@ UNITS_DIR = REPO / "fixtures" / "units"
 JOB_FILE = "job.json"  # written by start_run: procedure, unit, command, pid, expected duration
 EXIT_FILE = "exit_code"  # written by the run's shell wrapper when `workbench run` ends
 LOG_FILE = "run.log"
+LOG_LINES = 200  # lines of run.log kept in RunStatus.log (the summary and any error are at the end)
 
 
 # -- store and errors ------------------------------------------------------------------
@@ -256,7 +257,7 @@ class RunStatus:
 
     ``state`` is ``running``, ``done`` or ``failed``; ``progress`` the recorded fraction of the
     expected rig time (0..1, None when unknown); ``session_dir`` / ``result_dir`` the folders
-    holding ``session.json`` / ``result.json`` once they exist; ``log`` the tail of ``run.log``.
+    holding ``session.json`` / ``result.json`` once they exist; ``log`` the last LOG_LINES of ``run.log``.
     """
 
     folder: Path
@@ -315,12 +316,13 @@ def run_status(folder: Path) -> RunStatus:
     child = _CHILDREN.get(str(folder))
     if child is not None:
         child.poll()  # reap it when it has ended
+    # liveness first: the wrapper writes exit_code before it exits, so a dead wrapper without one was stopped
+    alive = _alive(int(job.get("pid", 0) or 0))
     exit_path = folder / EXIT_FILE
     code: int | None = None
     if exit_path.exists():
         text = exit_path.read_text().strip()
         code = int(text) if text.lstrip("-").isdigit() else None
-    alive = code is None and _alive(int(job.get("pid", 0) or 0))
     session_dir, result_dir = _find(folder, "session.json"), _find(folder, "result.json")
     n_done, t_done, n_planned, t_planned = _recorded(session_dir)
     expected = t_planned or job.get("expected_s")
@@ -334,7 +336,7 @@ def run_status(folder: Path) -> RunStatus:
         progress = min(t_done / float(expected), 1.0) if expected else None
     log = ""
     if (folder / LOG_FILE).exists():
-        log = "\n".join((folder / LOG_FILE).read_text(errors="replace").splitlines()[-30:])
+        log = "\n".join((folder / LOG_FILE).read_text(errors="replace").splitlines()[-LOG_LINES:])
     return RunStatus(folder, job, state, progress, n_done, n_planned or job.get("n_steps"), session_dir, result_dir,
                      log, code)
 

@@ -7,7 +7,10 @@ axis with 95 % chi-squared intervals (Greenhall EDF), the IEEE Std 952 noise-ter
 model selection, and the classic read-offs. Product: a calibration set with the ``noise``
 block (gyro ``arw`` rad/s/√Hz, ``bias_instability`` rad/s, ``rrw`` rad/s²/√Hz, ``quantization``
 rad; accel ``vrw`` m/s²/√Hz, ``bias_instability`` m/s², ``rrw`` m/s³/√Hz; each with ``<name>_ci95``;
-null = not observed by the record). References: thesis (shared/seeds/000_...) tables 1.1, 1.2,
+null = not observed by the record). A lazily loaded session (``load_session(dir, lazy=True)``,
+``session.samples is None``; batch workers do this for this procedure, :data:`LAZY_OK`) is
+analysed by :func:`workbench.analysis.allan_fit.analyze_stream` in bounded memory, with the
+same result structure (the record must then be gap-free). References: thesis (shared/seeds/000_...) tables 1.1, 1.2,
 2.1, 4.1 and eq. 3.50-3.53 (process noise from these terms).
 """
 
@@ -15,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from workbench.analysis.allan_fit import TERMS, AllanAnalysis, analyze_record
+from workbench.analysis.allan_fit import TERMS, AllanAnalysis, analyze_record, analyze_stream
 from workbench.calset import CalibrationSet
 from workbench.errors import AnalysisError, RigLimitError
 from workbench.plots.allan import plot_triads, term_text
@@ -30,6 +33,8 @@ CAMPAIGN_ORDER = 70  # last: the longest step of the campaign
 DEFAULTS = {"duration_s": 7200.0, "temperature_c": 25.0, "mount": "z-down", "soak": True,
             "taus": "octave", "gap_policy": "error"}
 LABEL = "allan"
+LAZY_OK = True  # analyze() streams a lazily loaded session (workbench.fleet.batch loads it lazily)
+STREAM_ROWS = 1 << 20  # samples per streamed batch (about 8 * 4 * STREAM_ROWS bytes with the step column)
 
 
 def sequence(spec, duration_s: float = 7200.0, temperature_c: float = 25.0, mount="z-down", soak: bool = True,
@@ -50,13 +55,20 @@ def _hold_step(session):
 
 
 def analyze(session, taus: str = "octave", gap_policy: str = "error", **_sequence_options) -> ProcedureResult:
-    """Allan analysis of the longest static hold; gyro always, accel when present."""
+    """Allan analysis of the longest static hold; gyro always, accel when present.
+
+    A lazily loaded session is streamed (``gap_policy`` is then moot: lazy loading already
+    refuses non-finite samples)."""
     step = _hold_step(session)
     rate = float(session.sample_rate_hz)
     analyses: dict[str, AllanAnalysis] = {}
     for triad, cols, data in (("gyro", GYRO, session.gyro), ("accel", ACCEL, session.accel)):
         src = f"{session.name}: step {step.index} ({triad})"
-        analyses[triad] = analyze_record(data(step.index), rate, cols, triad, taus, gap_policy, src)
+        if session.samples is None:  # lazily loaded long record: bounded memory
+            analyses[triad] = analyze_stream(lambda c=cols: session.stream(c, step.index, STREAM_ROWS), rate, cols,
+                                             triad, taus, src)
+        else:
+            analyses[triad] = analyze_record(data(step.index), rate, cols, triad, taus, gap_policy, src)
     cal = CalibrationSet(unit=session.unit, noise={t: a.noise_block() for t, a in analyses.items()},
                          notes={NAME: {"sample_rate_hz": rate, "duration_s": step.duration,
                                        "temperature_c": step.temperature_c}})

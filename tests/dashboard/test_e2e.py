@@ -174,8 +174,10 @@ def test_run_then_download_in_browser(server, browser_page):
     _settle(page)
     _shot(page, "20_run_result")
     _assert_no_exception(page, "run page (result)")
-    assert page.get_by_text(re.compile("finished: .* steps recorded")).count() == 1, \
-        page.locator("[data-testid='stCode']").last.inner_text()[:800]
+    if page.get_by_text(re.compile("finished: .* steps recorded")).count() != 1:
+        alerts = page.locator("[data-testid='stAlert']").all_inner_texts()
+        codes = page.locator("[data-testid='stCode']").all_inner_texts()
+        pytest.fail(f"the run did not finish: {alerts}\n{codes[-1][-1500:] if codes else ''}")
 
     page.goto(f"{url}/calibration_sets")
     _settle(page)

@@ -17,12 +17,13 @@ evaluated on the rescaled problem (same r = M / S, J_MAX terms), which is the co
 behind the paper's large-J tables. The interval of the variance is then
 ``[edf s^2 / chi2(0.975, edf), edf s^2 / chi2(0.025, edf)]``.
 
-Public: :func:`noise_id`, :func:`identify`, :func:`alpha_from_slope`, :func:`edf_greenhall`, :func:`confidence`,
-:class:`DeviationCI`.
+Public: :func:`noise_id`, :func:`noise_id_decimated`, :func:`identify`, :func:`identify_decimated`,
+:func:`alpha_from_slope`, :func:`edf_greenhall`, :func:`confidence`, :class:`DeviationCI`.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -70,7 +71,12 @@ def noise_id(x: np.ndarray, m: int, dmax: int) -> float:
     Lag-1 autocorrelation method (Riley & Greenhall 2004) on the phase decimated by ``m``
     (its first :data:`MAX_POINTS_ID` points).
     """
-    z = np.asarray(x[::m][:MAX_POINTS_ID], float)
+    return noise_id_decimated(x[::m][:MAX_POINTS_ID], dmax)
+
+
+def noise_id_decimated(z: np.ndarray, dmax: int) -> float:
+    """Power-law exponent alpha (not rounded) from an already decimated phase ``z`` (L_m,) (any unit)."""
+    z = np.asarray(z, float)
     t = np.arange(len(z), dtype=float)
     z = z - np.polyval(np.polyfit(t, z, 2), t)
     d = 0
@@ -86,12 +92,19 @@ def noise_id(x: np.ndarray, m: int, dmax: int) -> float:
 def identify(x: np.ndarray, m: np.ndarray, kind: str) -> np.ndarray:
     """Rounded alpha (K, C) for phase ``x`` (C, L) at factors ``m``; NaN where the decimated
     series has fewer than :data:`MIN_POINTS_ID` points (too short to identify reliably)."""
+    return identify_decimated([x[:, ::int(mk)][:, :MAX_POINTS_ID] for mk in m], x.shape[1], m, kind)
+
+
+def identify_decimated(z: Sequence[np.ndarray], n_phase: int, m: np.ndarray, kind: str) -> np.ndarray:
+    """:func:`identify` from the decimated phases ``z[k]`` (C, >= min(ceil(L / m_k), MAX_POINTS_ID)),
+    ``x[:, ::m_k]`` of a record of ``n_phase`` = L phase points, of which the first
+    :data:`MAX_POINTS_ID` are used (a streamed record keeps only those: bounded memory)."""
     lo, hi = _ALPHA_RANGE[kind]
-    out = np.full((len(m), x.shape[0]), np.nan)
-    for c in range(x.shape[0]):
-        for k, mk in enumerate(m):
-            if x.shape[1] // mk >= MIN_POINTS_ID:
-                out[k, c] = float(np.clip(np.round(noise_id(x[c], int(mk), _D[kind])), lo, hi))
+    out = np.full((len(m), len(z[0]) if len(z) else 0), np.nan)
+    for k, mk in enumerate(m):
+        if n_phase // mk >= MIN_POINTS_ID:
+            for c in range(out.shape[1]):
+                out[k, c] = float(np.clip(np.round(noise_id_decimated(z[k][c][:MAX_POINTS_ID], _D[kind])), lo, hi))
     return out
 
 
@@ -178,12 +191,14 @@ def confidence(curve: DeviationCurve, x: np.ndarray | None = None, alpha: np.nda
     """Chi-squared interval of every point of ``curve`` at two-sided confidence ``level``.
 
     The noise exponent comes from ``alpha`` (K, C) if given, else is identified from the
-    phase ``x`` (C, L) the curve was computed from (:func:`workbench.analysis.allan.phase`).
+    phase ``x`` (C, L) the curve was computed from (:func:`workbench.analysis.allan.phase`);
+    NaN exponents (taus too long to identify) are filled as described in the module docstring.
     """
     if alpha is None:
         if x is None:
             raise ValueError("confidence: give the phase x or the noise exponents alpha")
-        alpha = _fill_short(curve, identify(x, curve.m, curve.kind))
+        alpha = identify(x, curve.m, curve.kind)
+    alpha = _fill_short(curve, alpha)
     edf = _edf(curve, alpha)
     q = (1.0 - level) / 2.0
     lo = curve.dev * np.sqrt(edf / chi2.ppf(1.0 - q, edf))

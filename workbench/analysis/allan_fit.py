@@ -28,13 +28,15 @@ Classic read-offs for comparison with datasheets and the thesis tables (1.1, 1.2
 N on the slope -1/2 line at tau = 1 s, K on the slope +1/2 line at tau = 3 s, B = min ADEV / 0.664.
 
 Public: :data:`TERMS`, :class:`NoiseTerm`, :class:`ChannelNoise`, :func:`fit_channel`, :func:`fit_terms`,
-:func:`read_offs`.
+:func:`read_offs`, :class:`AllanAnalysis`, :func:`analyze_record`, :func:`analyze_stream`.
 """
 
 from __future__ import annotations
 
 import itertools
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from scipy.optimize import nnls
@@ -243,3 +245,26 @@ def analyze_record(y: np.ndarray, rate: float, columns: tuple[str, ...] | list[s
     curve = allan.deviation(y, rate, "oadev", taus, columns, gap_policy, quantity, source)
     ci = confidence(curve, allan.phase(max(segments, key=len), rate))
     return AllanAnalysis(ci, fit_terms(ci), quantity, tuple(warnings))
+
+
+def analyze_stream(batches: Callable[[], Iterator[np.ndarray]], rate: float, columns: tuple[str, ...] | list[str],
+                   quantity: str | None = None, taus: str | np.ndarray = "octave", source: str = "stream",
+                   tmp_dir: str | Path | None = None) -> AllanAnalysis:
+    """:func:`analyze_record` of a record too large for memory, in bounded memory.
+
+    ``batches()`` returns a fresh iterator over consecutive (n, C) blocks of SI rate samples at
+    ``rate`` Hz (e.g. ``lambda: session.stream(cols, step)``); the record must be gap-free. The
+    deviations come from :func:`workbench.analysis.allan_stream.stream_deviation_from`; the noise
+    identification uses the phase decimated by each m, of which the in-memory path reads only
+    the first :data:`workbench.analysis.allan_ci.MAX_POINTS_ID` points: the streamed pass keeps
+    exactly those (at most 0.5 MB per tau and channel), so intervals and terms are those of
+    :func:`analyze_record` (up to the ~1e-13 summation-order differences of the deviations).
+    """
+    from workbench.analysis.allan_ci import MAX_POINTS_ID, confidence, identify_decimated
+    from workbench.analysis.allan_stream import stream_deviation_from
+
+    s = stream_deviation_from(batches, columns, rate, "oadev", taus, tmp_dir=tmp_dir, source=source,
+                              quantity=quantity, keep=MAX_POINTS_ID)
+    c = s.curve
+    ci = confidence(c, alpha=identify_decimated(s.decimated, c.n_samples + 1, c.m, c.kind))
+    return AllanAnalysis(ci, fit_terms(ci), quantity)

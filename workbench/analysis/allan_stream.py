@@ -1,12 +1,17 @@
-"""Allan and Hadamard deviations of a Parquet record too large for memory.
+"""Allan and Hadamard deviations of a record too large for memory, streamed in batches.
 
-Three sequential passes, memory bounded by the chunk and window sizes (not the record):
+The record comes from a factory of batch iterators (each call restarts it: consecutive (n, C)
+blocks of SI rate samples), e.g. a Parquet file's row groups (:func:`stream_deviation`) or one
+step of a lazily loaded session (``lambda: session.stream(columns, step, rows)``). Three
+sequential passes, memory bounded by the batch, block and window sizes (not the record):
 
-1. read the rate columns row group by row group (pyarrow ``iter_batches``): count, column
-   sums for the mean, NaN check (a streamed record must be gap-free: the error names the row);
-2. integrate to phase chunk by chunk (the running sum carried across chunks, the same
+1. count, column sums for the mean, NaN check (a streamed record must be gap-free: the error
+   names the row), and the magnitude check of :func:`workbench.analysis.allan.prepare_rate_data`
+   on the first 100 000 samples (as in memory);
+2. integrate to phase batch by batch (the running sum carried across batches, the same
    operations as :func:`workbench.analysis.allan.phase`) into one temporary raw float64
-   file per channel;
+   file per channel; optionally keep the phase decimated by every averaging factor m,
+   ``x[::m][:keep]``, for noise identification (:func:`workbench.analysis.allan_ci.identify_decimated`);
 3. sweep the difference index in blocks of ``block`` points: lags with ``order * m <= window``
    are summed from one contiguous read of the block plus its tail, larger lags from
    reads of ``block`` points at offsets m, 2m (, 3m) (each offset read once per block: the 2m
@@ -18,12 +23,14 @@ The results equal the in-memory :func:`workbench.analysis.allan.deviation` (the 
 grouped differently: relative differences ~1e-13). The modified Allan deviation's running
 inner sum is not streamed; use the in-memory path for ``mdev``.
 
-Public: :func:`stream_deviation`.
+Public: :func:`stream_deviation_from`, :func:`stream_deviation`, :class:`StreamedDeviation`.
 """
 
 from __future__ import annotations
 
 import tempfile
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -35,6 +42,21 @@ from workbench.errors import AnalysisError
 
 STREAM_KINDS = ("oadev", "ohdev")
 _SUB = 1 << 16  # differences per compiled partial sum of the long lags (keeps the summation accurate)
+_HEAD = 100_000  # samples of the magnitude check (the in-memory path checks the same first samples)
+
+Batches = Callable[[], Iterator[np.ndarray]]
+
+
+@dataclass(frozen=True)
+class StreamedDeviation:
+    """A streamed deviation curve and the decimated phase kept for noise identification.
+
+    ``decimated[k]`` (C, min(ceil(L / m_k), keep)) is the phase ``x[:, ::m_k][:, :keep]`` (rad |
+    m/s; L = N + 1 points) at the curve's factor m_k; empty tuple when ``keep`` was 0.
+    """
+
+    curve: DeviationCurve
+    decimated: tuple[np.ndarray, ...]
 
 
 def _batches(pf: pq.ParquetFile, columns: list[str], rows: int):
@@ -43,17 +65,23 @@ def _batches(pf: pq.ParquetFile, columns: list[str], rows: int):
                                for c in columns])
 
 
-def _scan(pf: pq.ParquetFile, columns: list[str], rows: int, source: str) -> tuple[int, np.ndarray]:
-    """Pass 1: sample count and column sums; raises on the first non-finite value."""
-    n, sums = 0, np.zeros(len(columns))
-    for y in _batches(pf, columns, rows):
+def _scan(batches: Batches, columns: list[str], source: str, quantity: str | None) -> tuple[int, np.ndarray]:
+    """Pass 1: sample count and column sums; raises on the first non-finite value or a wrong unit."""
+    n, sums, head = 0, np.zeros(len(columns)), []
+    for y in batches():
+        if y.ndim != 2 or y.shape[1] != len(columns):
+            raise AnalysisError(f"{source}: a batch of shape {y.shape} does not match columns {', '.join(columns)}")
         if not np.isfinite(y.sum()):
             bad = ~np.isfinite(y)
             row, col = np.argwhere(bad)[0]
             raise AnalysisError(f"{source}: column {columns[col]}: NaN or infinite value at row {n + row} "
                                 "(streaming needs a gap-free record; load it in memory for a gap policy)")
+        if quantity is not None and n < _HEAD:
+            head.append(np.array(y[:_HEAD - n]))
         sums += allan.column_sums(np.ascontiguousarray(y))
         n += len(y)
+    if quantity is not None and head:
+        allan._check_magnitude(np.concatenate(head), columns, source, quantity)
     return n, sums
 
 
@@ -66,21 +94,56 @@ def _read(fh, start: int, count: int, pool: list[np.ndarray]) -> np.ndarray:
     return buf[:count]
 
 
+def stream_deviation_from(batches: Batches, columns: list[str] | tuple[str, ...], rate: float,
+                          kind: str = "oadev", taus: str | np.ndarray = "octave", block: int = 1 << 22,
+                          window: int = 1 << 22, tmp_dir: str | Path | None = None, source: str = "stream",
+                          quantity: str | None = None, keep: int = 0) -> StreamedDeviation:
+    """Deviation ``kind`` (oadev | ohdev) of a record of rate ``columns`` at ``rate`` Hz, streamed.
+
+    ``batches()`` returns a fresh iterator over consecutive (n, C) blocks of the record (SI:
+    rad/s or m/s^2; it is called twice); ``quantity`` (``"gyro"`` | ``"accel"``) enables the
+    magnitude check; ``keep`` decimated phase points are kept per factor (see
+    :class:`StreamedDeviation`; ``keep * C * 8`` bytes per tau at most). ``block`` differences
+    are summed per sweep step and lags up to ``window / order`` served from one contiguous read;
+    the phase (8 bytes per sample and channel) is held in temporary files under ``tmp_dir``
+    (default: the system's). Peak memory is about ``8 * (3 * rows * C + window + (2 * order + 2)
+    * block)`` bytes for batches of ``rows`` samples (order 2 for oadev, 3 for ohdev): ~0.3 GB
+    with the defaults and 1 M-row batches, whatever the record length.
+    """
+    if kind not in STREAM_KINDS:
+        raise AnalysisError(f"{source}: streaming supports {', '.join(STREAM_KINDS)}, not {kind}")
+    columns = list(columns)
+    n, sums = _scan(batches, columns, source, quantity)
+    if n < allan.MIN_SAMPLES:
+        raise AnalysisError(f"{source}: {n} samples; Allan statistics need at least {allan.MIN_SAMPLES}")
+    n_phase = n + 1
+    m = allan.averaging_factors(n_phase, taus, rate, kind)
+    if len(m) == 0:
+        raise AnalysisError(f"{source}: no averaging time fits {n} samples for {kind}")
+    order = allan.ORDER[kind]
+    counts = allan._n_terms(kind, n_phase, m)
+    with tempfile.TemporaryDirectory(dir=tmp_dir, prefix="allan-stream-") as tmp:
+        files = [Path(tmp) / f"phase{c}.f64" for c in range(len(columns))]
+        decimated = _write_phase(batches, rate, sums / n, files, m, keep, n_phase)
+        out = np.zeros((len(m), len(columns)))
+        for c, f in enumerate(files):
+            with open(f, "rb") as fh:
+                out[:, c] = _sweep(fh, m, counts, order, n_phase, block, window)
+    curve = DeviationCurve(kind, m / rate, m, allan.normalise(kind, out, counts, m, rate), counts, float(rate), n,
+                           tuple(columns))
+    return StreamedDeviation(curve, decimated)
+
+
 def stream_deviation(path: str | Path, columns: list[str] | tuple[str, ...], rate: float, kind: str = "oadev",
                      taus: str | np.ndarray = "octave", rows: int = 1 << 20, block: int = 1 << 22,
                      window: int = 1 << 22, tmp_dir: str | Path | None = None) -> DeviationCurve:
     """Deviation ``kind`` (oadev | ohdev) of rate ``columns`` of a Parquet file at ``rate`` Hz.
 
-    ``rows`` samples are read per batch, ``block`` differences summed per sweep step and lags
-    up to ``window / order`` served from one contiguous read; the phase (8 bytes per sample
-    and channel) is held in temporary files under ``tmp_dir`` (default: the system's).
-    Peak memory is about ``8 * (3 * rows * C + window + (2 * order + 2) * block)`` bytes (order 2 for
-    oadev, 3 for ohdev): ~0.3 GB with the defaults, whatever the record length.
+    :func:`stream_deviation_from` over the file's batches of ``rows`` rows (~0.3 GB peak with
+    the defaults, whatever the file size).
     """
     path = Path(path)
     source = str(path)
-    if kind not in STREAM_KINDS:
-        raise AnalysisError(f"{source}: streaming supports {', '.join(STREAM_KINDS)}, not {kind}")
     try:
         pf = pq.ParquetFile(path, pre_buffer=False)  # pre-buffering holds whole row groups twice
     except Exception as exc:  # pyarrow raises several types for unreadable files
@@ -88,40 +151,39 @@ def stream_deviation(path: str | Path, columns: list[str] | tuple[str, ...], rat
     missing = [c for c in columns if c not in pf.schema_arrow.names]
     if missing:
         raise AnalysisError(f"{source}: no column(s) {', '.join(missing)} (has {', '.join(pf.schema_arrow.names)})")
-    columns = list(columns)
-    n, sums = _scan(pf, columns, rows, source)
-    if n < allan.MIN_SAMPLES:
-        raise AnalysisError(f"{source}: {n} samples; Allan statistics need at least {allan.MIN_SAMPLES}")
-    n_phase = n + 1
-    m = allan.averaging_factors(n_phase, taus, rate, kind)
-    order = allan.ORDER[kind]
-    counts = allan._n_terms(kind, n_phase, m)
-    with tempfile.TemporaryDirectory(dir=tmp_dir, prefix="allan-stream-") as tmp:
-        files = [Path(tmp) / f"phase{c}.f64" for c in range(len(columns))]
-        _write_phase(pf, columns, rows, rate, sums / n, files)
-        out = np.zeros((len(m), len(columns)))
-        for c, f in enumerate(files):
-            with open(f, "rb") as fh:
-                out[:, c] = _sweep(fh, m, counts, order, n_phase, block, window)
-    return DeviationCurve(kind, m / rate, m, allan.normalise(kind, out, counts, m, rate), counts, float(rate), n,
-                          tuple(columns))
+    return stream_deviation_from(lambda: _batches(pf, list(columns), rows), columns, rate, kind, taus, block, window,
+                                 tmp_dir, source).curve
 
 
-def _write_phase(pf, columns, rows, rate, mean, files) -> None:
-    """Pass 2: phase of every channel into its raw float64 file (x_0 = 0 first)."""
-    run = np.zeros(len(columns))
+def _write_phase(batches: Batches, rate: float, mean: np.ndarray, files: list[Path], m: np.ndarray, keep: int,
+                 n_phase: int) -> tuple[np.ndarray, ...]:
+    """Pass 2: phase of every channel into its raw float64 file (x_0 = 0 first); returns the
+    decimated phase x[:, ::m_k][:, :keep] per factor (empty tuple when ``keep`` is 0)."""
+    n_ch = len(files)
+    run = np.zeros(n_ch)
+    dec = tuple(np.zeros((n_ch, min(keep, (n_phase - 1) // int(mk) + 1))) for mk in m) if keep > 0 else ()
+    g0 = 1  # phase index of the batch's first point (x_0 = 0 is already in place)
     handles = [open(f, "wb") for f in files]
     try:
         for fh in handles:
             np.zeros(1).tofile(fh)
-        for y in _batches(pf, columns, rows):
-            x = np.empty((len(columns), len(y)))
+        for y in batches():
+            if not len(y):
+                continue
+            x = np.empty((n_ch, len(y)))
             allan._integrate(np.ascontiguousarray(y), mean, 1.0 / float(rate), run, x)
             for fh, xc in zip(handles, x):
                 xc.tofile(fh)
+            g1 = g0 + len(y)
+            for mk, z in zip(m.tolist(), dec):
+                j0, j1 = -(-g0 // mk), min(z.shape[1], -(-g1 // mk))  # multiples of m in [g0, g1)
+                if j1 > j0:
+                    z[:, j0:j1] = x[:, j0 * mk - g0:(j1 - 1) * mk - g0 + 1:mk]
+            g0 = g1
     finally:
         for fh in handles:
             fh.close()
+    return dec
 
 
 def _sweep(fh, m: np.ndarray, counts: np.ndarray, order: int, n_phase: int, block: int, window: int) -> np.ndarray:

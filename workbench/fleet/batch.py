@@ -32,7 +32,8 @@ def analyze_one(procedure: str, session_dir: str, options: Mapping | None = None
     outcome: dict = {"session_dir": str(session_dir), "procedure": procedure, "ok": False}
     try:
         proc = get_procedure(procedure)
-        session = load_session(session_dir)
+        # procedures that stream long records (LAZY_OK) get the samples left on disk: bounded memory
+        session = load_session(session_dir, lazy=bool(getattr(proc, "LAZY_OK", False)))
         result = with_session_provenance(proc.analyze(session, **dict(options or {})), session)
         outcome.update(
             ok=True, result=json.loads(result_json(result)),
