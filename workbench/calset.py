@@ -345,10 +345,11 @@ def atomic_write_text(path: Path, text: str) -> Path:
 
 
 def _merge_array(old: np.ndarray, old_sig: np.ndarray, new: np.ndarray, new_sig: np.ndarray):
-    """Element-wise: take the newer element where it is observed, else the older where observed."""
+    """Element-wise: the better-determined estimate (smaller finite sigma; the newer on a tie or
+    when neither is observed)."""
     if old.shape != new.shape:
         return new, new_sig
-    take_new = np.isfinite(new_sig) | ~np.isfinite(old_sig)
+    take_new = ~np.isfinite(old_sig) | (np.isfinite(new_sig) & (new_sig <= old_sig))
     return np.where(take_new, new, old), np.where(take_new, new_sig, old_sig)
 
 
@@ -376,10 +377,11 @@ def _merge_triads(old: TriadCalibration, new: TriadCalibration) -> TriadCalibrat
 
 
 def merge(*sets: CalibrationSet) -> CalibrationSet:
-    """Merge partial sets of one unit, later sets taking precedence where they observe a value.
+    """Merge partial sets of one unit into one.
 
-    Element by element, a coefficient comes from the latest set whose uncertainty for it is
-    finite; noise terms from the latest set that reports them; provenance is the union.
+    Element by element, a coefficient comes from the set that determines it best (the
+    smallest finite 1-sigma; among equals, or where no set observed it, the latest); a thermal
+    block and noise terms from the latest set that reports them; provenance is the union.
     """
     if not sets:
         raise CalibrationFormatError("merge: no calibration sets given")

@@ -122,7 +122,10 @@ def run_campaign(spec, truth, cfg: RigConfig, seed: int, out_dir: Path, store=No
         session = record_procedure(proc, spec, truth, cfg, seed + 101 * (k + 1), pdir / "session",
                                    (options or {}).get(proc.NAME), progress)
         sessions[proc.NAME] = session
-        results[proc.NAME] = run_analysis(proc, session, {}, pdir, None)
+        # a model with a reference temperature refers to the ambient the other procedures ran at,
+        # so that its bias and scale factor at t_ref merge consistently with theirs
+        analysis = {"t_ref_c": cfg.chamber.initial_c} if "t_ref_c" in getattr(proc, "DEFAULTS", {}) else {}
+        results[proc.NAME] = run_analysis(proc, session, analysis, pdir, None)
     sets = [r.calibration for r in results.values() if r.calibration is not None]
     if not sets:
         raise ProcedureError("the campaign produced no calibration set")

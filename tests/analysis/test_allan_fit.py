@@ -91,6 +91,19 @@ def test_fit_recovers_exact_model_and_omits_absent_terms():
     assert set(fit.terms) == set(TERMS)
 
 
+def test_a_dominant_term_keeps_a_nonzero_lower_bound_beside_other_terms():
+    # N, B and K on a noise-free curve with the EDFs of a 2 h record: N dominates two decades
+    # of tau, so its 95 % interval must exclude zero even when the model without N cannot be
+    # fitted with all its remaining terms positive (a regression: it used to report [0, N])
+    tau = 0.01 * 2.0 ** np.arange(19)
+    theta = np.array([0.0, (1e-3) ** 2, (2e-5) ** 2, (3e-6) ** 2, 0.0])
+    dev = _exact_curve(theta, tau)
+    edf = 7.2e5 / 2.0 ** np.arange(19) + 2
+    fit = fit_channel(tau, dev, edf, dev * 1.2)
+    lo, hi = fit.terms["white"].ci95
+    assert 0.9e-3 < lo <= 1e-3 <= hi < 1.1e-3
+
+
 def test_classic_read_offs_on_closed_forms():
     tau = np.logspace(-2, 4, 61)
     # pure white: the -1/2 line at 1 s is N; pure RRW: the +1/2 line at 3 s is K; flat: B = min/0.664

@@ -75,3 +75,7 @@ def test_merge_takes_observed_elements_and_records_both_provenances():
     assert m.provenance.merged_from == (a.id, b.id)
     with pytest.raises(CalibrationFormatError, match="different units"):
         merge(a, make_set("U2"))
+    # both observe accel bias x: the better-determined estimate wins whatever the order
+    worse = CalibrationSet(Unit("U1", ""), {"accel": TriadCalibration(
+        TriadModel(bias=[5, 5, 5]), {"bias": np.array([1e-2, np.nan, np.nan])})})
+    assert merge(a, worse).model("accel").bias[0] == 0.01 and merge(worse, a).model("accel").bias[0] == 0.01

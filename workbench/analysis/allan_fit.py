@@ -110,6 +110,19 @@ def _irls(a: np.ndarray, avar: np.ndarray, edf: np.ndarray, cols: list[int]) -> 
     return theta, edf / (2.0 * np.maximum(model, 1e-300) ** 2)
 
 
+def _absence_allowed(a: np.ndarray, avar: np.ndarray, edf: np.ndarray, without: list[int], chi_best: float) -> bool:
+    """Whether the model without a term fits within the 95 % chi-squared(1) margin of the best.
+
+    The reduced model is refitted (non-negative, its coefficients free to reach zero); no term
+    left at all means zero noise, which the data always exclude.
+    """
+    if not without:
+        return False
+    theta, w = _irls(a, avar, edf, without)
+    chi = float(np.sum(w * (avar - a @ theta) ** 2)) / CORRELATION
+    return chi - chi_best < chi2.ppf(0.95, 1)
+
+
 def _dominant_range(k: int, theta: np.ndarray, tau_lo: float, tau_hi: float) -> tuple[float, float] | None:
     """Tau range (s) within [tau_lo, tau_hi] where term k is the largest model contribution."""
     grid = np.logspace(np.log10(tau_lo), np.log10(tau_hi), 400)
@@ -160,8 +173,7 @@ def fit_channel(tau: np.ndarray, dev: np.ndarray, edf: np.ndarray, hi: np.ndarra
             nu = 2.0 * theta[k] ** 2 / var if var > 0 else np.inf
             lo, up = ((theta[k], theta[k]) if not np.isfinite(nu) else
                       (nu * theta[k] / chi2.ppf(0.975, nu), nu * theta[k] / chi2.ppf(0.025, nu)))
-            without = tuple(c for c in best if c != k)
-            if not without or without not in fits or fits[without][2] - chi_best < chi2.ppf(0.95, 1):
+            if _absence_allowed(a, avar, edf, [c for c in best if c != k], chi_best):
                 lo = 0.0  # the data do not exclude the term's absence at 95 %
             terms[name] = NoiseTerm(name, float(np.sqrt(theta[k])), (float(np.sqrt(lo)), float(np.sqrt(up))), True,
                                     _dominant_range(k, theta, float(tau.min()), float(tau.max())))

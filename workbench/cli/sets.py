@@ -56,7 +56,7 @@ def _triad_table(cal: CalibrationSet, triad: str) -> Table:
     m, ms = tc.model.scale_misalignment, tc.sigma_of("scale_misalignment")
     t.add_row("scale factor ± 1σ", *[f"{m[i, i] * 1e6:.1f} ± {_sig(ms[i, i], 'ppm')}" for i in range(3)])
     for i in range(3):
-        t.add_row(f"M[{'xyz'[i]}, :] (mrad)", *[("—" if i == j else f"{m[i, j] * 1e3:.3f} ± {_sig(ms[i, j], 'mrad')}")
+        t.add_row(f"misalignment {'xyz'[i]}-row (mrad)", *[("—" if i == j else f"{m[i, j] * 1e3:.3f} ± {_sig(ms[i, j], 'mrad')}")
                                                 for j in range(3)])
     if np.any(tc.model.nonlinearity):
         t.add_row("nonlinearity (1/SI)", *[f"{v:.3g}" for v in tc.model.nonlinearity])
