@@ -559,10 +559,10 @@ def show_result(result: ProcedureResult | Path, figures: bool = True) -> None:
 
 
 def page_link(page: str, label: str) -> None:
-    """A link to another dashboard page (``dashboard/pages/NN_name.py``); plain text when run outside app.py."""
+    """A link to another dashboard page (``NN_name.py``, with or without its folder); plain text outside app.py."""
     from streamlit.errors import StreamlitAPIException
 
     try:
-        st.page_link(page, label=label)
+        st.page_link(f"dashboard/pages/{Path(page).name}", label=label)
     except StreamlitAPIException:  # the page was run on its own (no st.navigation)
         st.caption(f"{label} ({page})")

@@ -66,12 +66,9 @@ def sequence(spec, profile: str = "soak", t_min_c: float = -10.0, t_max_c: float
     tau = float(getattr(spec, "thermal_time_constant_s", 600.0) or 600.0)
     max_s = max(4 * 3600.0, 12 * tau)
     steps: list = []
-    # the rig waits for half the slope the analysis accepts, so a soak the rig called settled
-    # is not rejected by the analysis for the noise of the unit's thermometer
-    rig_tol = settle_tol_c_per_min / 2.0
     if profile == "soak":
         for temp in setpoints(t_min_c, t_max_c, step_c, return_sweep):
-            steps.append(Soak(temp, mount, 0.0, rig_tol, settle_window_s, max_s, f"soak {temp:g} °C"))
+            steps.append(Soak(temp, mount, 0.0, settle_tol_c_per_min, settle_window_s, max_s, f"soak {temp:g} °C"))
             steps += [Hold(m, 0.0, dwell_s, f"{temp:g} °C {m}") for m in SIX]
             if rate_dps:
                 rate = np.radians(rate_dps)
@@ -79,7 +76,7 @@ def sequence(spec, profile: str = "soak", t_min_c: float = -10.0, t_max_c: float
                           for m in RATE_MOUNTS for sgn in (1, -1)]
     elif profile == "ramp":
         positions = [[m, 0.0] for m in SIX] if ramp_dwell_s else None
-        steps.append(Soak(t_min_c, mount, 0.0, rig_tol, settle_window_s, max_s, f"soak {t_min_c:g} °C"))
+        steps.append(Soak(t_min_c, mount, 0.0, settle_tol_c_per_min, settle_window_s, max_s, f"soak {t_min_c:g} °C"))
         steps.append(Ramp(t_max_c, ramp_c_per_min, mount, 0.0, positions, ramp_dwell_s, "ramp up"))
         if return_sweep:
             steps.append(Ramp(t_min_c, ramp_c_per_min, mount, 0.0, positions, ramp_dwell_s, "ramp down"))

@@ -197,7 +197,7 @@ class Session:
             return
         import pyarrow.parquet as pq
 
-        pf = pq.ParquetFile(self.path / "samples.parquet")
+        pf = pq.ParquetFile(self.path / "samples.parquet", pre_buffer=False)  # pre-buffering grows with the file
         for batch in pf.iter_batches(batch_size=batch_rows, columns=[*columns, "step"]):
             block = np.column_stack([batch.column(c).to_numpy(zero_copy_only=False) for c in columns]).astype(float)
             if step is not None:
@@ -343,7 +343,7 @@ def validate_parquet_stream(path: Path, steps: Sequence[StepRecord], sample_rate
     """
     import pyarrow.parquet as pq
 
-    pf = pq.ParquetFile(path)
+    pf = pq.ParquetFile(path, pre_buffer=False)  # pre-buffering caches every row group: memory grows with the file
     names = set(pf.schema_arrow.names)
     missing = [c for c in REQUIRED_COLUMNS if c not in names]
     if missing:

@@ -431,3 +431,13 @@ def test_overview_lists_units_sessions_and_runs(fake_run, stored_session):
     assert at.dataframe[1].value.procedure.iloc[0] == "multiposition"
     runs = at.dataframe[2].value
     assert runs.state.iloc[0] == "done" and runs.progress.iloc[0] == 100
+
+
+def test_run_page_in_app_links_to_calibration_sets(fake_run):
+    from dashboard import common
+
+    _wait_for_end(common.start_run("ok", next(iter(common.unit_grades().values()))))
+    at = AppTest.from_file(str(REPO / "app.py"), default_timeout=TIMEOUT).run()
+    at.switch_page("dashboard/pages/20_run.py").run()
+    assert not at.exception
+    assert [link.proto.label for link in at.get("page_link")] == ["Calibration sets →"]

@@ -177,9 +177,10 @@ def test_soak_ramp_and_rotation_through_the_drivers(tmp_path, start_lab, closing
     rig = closing(open_real_rig(lab.config))
     rate = np.radians(30.0)
     seq = Sequence("thermal", [Soak(26.0, "z-down", 0.0, settle_tol_c_per_min=0.05, settle_window_s=30.0, max_s=600.0),
-                               Ramp(27.0, 2.0, "z-down"), Rotate("z-down", rate, duration_s=10.0)])
+                               Ramp(27.0, 2.0, "z-down"), Rotate("z-down", rate, duration_s=10.0),
+                               Hold("x-up", 0.0, 1.0)])  # remount: stops the rotation first
     session = record(start(seq, rig, Unit(truth.serial, truth.model), "thermal", None), rig)
-    soak, ramp, spin = session.steps
+    soak, ramp, spin, hold = session.steps  # the session validated: no gaps in the samples
     temp = session.samples["temp"].to_numpy()
     at = session.samples["step"].to_numpy()
     # soak: settled = slope < 0.05 °C/min; with a 10 s lag the slope is e / 10 s * 60, so the remaining
@@ -198,3 +199,7 @@ def test_soak_ramp_and_rotation_through_the_drivers(tmp_path, start_lab, closing
     assert np.median(steps) == pytest.approx(rate / FS, rel=1e-3)
     # gyro z (down, z-down mount) sees table rate + Earth rate + bias: within 1 °/s of the table rate
     assert s["gz"].mean() == pytest.approx(rate, abs=np.radians(1.0))
+    # after the remount the table is at rest with the unit x-up: accel x reads +g (specific force points up;
+    # bias and scale-factor errors of this grade stay below 0.1 m/s^2)
+    h = session.samples[at == hold.index]
+    assert h["table_rate"].abs().max() == 0.0 and h["ax"].mean() == pytest.approx(9.80, abs=0.1)

@@ -359,6 +359,10 @@ def fit_thermal_poly(temperature_c, values, sigma=None, direction=None, groups=N
         coeffs_sigma[ax] = np.sqrt(np.diag(cov)[:K]) * scale
         orders[ax] = k_sel
         cv_chosen[ax] = (cv_rms_h if h_used[ax] else cv_rms)[k_sel, ax]
+        if np.isfinite(cv_chosen[ax]):
+            # the value at t_ref is a prediction like the held-out ones: its 1-sigma is at least
+            # their RMS error (the least-squares sigma alone trusts a model of few points)
+            coeffs_sigma[ax, 0] = max(coeffs_sigma[ax, 0], cv_chosen[ax])
     fit = PolyFit(quantity, float(t_ref_c), coeffs, coeffs_sigma, orders, cv_orders, cv_rms, cv_rms_h,
                   cv_chosen, h, h_sigma, h_used, tc, y, sig, d, np.full_like(y, np.nan), tuple(warnings))
     object.__setattr__(fit, "residuals", y - fit.predict(tc, d))
@@ -467,15 +471,19 @@ def soak_points(session, triads=("gyro", "accel"), settle_tol_c_per_min: float =
         tm, tempm = t_all[meas_sel], temp_all[meas_sel]
         st = settling(ts, temps, settle_tol_c_per_min, settle_window_s) if len(ts) > 2 else None
         settle_time = None if st is None or not st.settled else st.t_settled - ts[0]
-        if len(tm) > 2 and tm[-1] - tm[0] >= 10.0:
-            rate = float(np.polyfit(tm - tm[0], tempm, 1)[0] * 60.0)
+        rate_se = 0.0
+        if len(tm) > 3 and tm[-1] - tm[0] >= 10.0:
+            p, cov = np.polyfit(tm - tm[0], tempm, 1, cov=True)
+            rate, rate_se = float(p[0] * 60.0), float(np.sqrt(cov[0, 0]) * 60.0)
         else:  # measurement too short to tell: the soak's own final slope
             rate = st.final_rate_c_per_min if st is not None else 0.0
-        settled = abs(rate) < settle_tol_c_per_min
+        # unsettled only when the slope exceeds the tolerance by more than its 2-sigma
+        # (the unit's thermometer noise makes a short regression slope uncertain)
+        settled = abs(rate) - 2.0 * rate_se < settle_tol_c_per_min
         if not settled:
             how = "never settled" if settle_time is None else f"settled after {settle_time:.0f} s"
             warnings.append(f"step {g.soak_step} (soak {g.setpoint_c} °C): unit temperature did not settle: "
-                            f"{rate:.3g} °C/min over measurement steps {g.steps[0]}-{g.steps[-1]} (tolerance "
+                            f"{rate:.3g} ± {rate_se:.2g} °C/min over measurement steps {g.steps[0]}-{g.steps[-1]} (tolerance "
                             f"{settle_tol_c_per_min} °C/min; soak step {how}); soak left out of the fit")
         mean_t = float(tempm.mean())
         start_t = float(temps[0]) if len(temps) else mean_t

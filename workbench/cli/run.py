@@ -94,7 +94,7 @@ def _default_out(name: str, serial: str) -> Path:
 
 
 def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A procedure name, or 'campaign'."),
-        unit: Path = typer.Option(Path("fixtures/units/industrial_mems.yaml"), "--unit",
+        unit: str = typer.Option("industrial_mems", "--unit",
                                   help="Unit grade fixture (fixtures/units/*.yaml) or grade name."),
         rig: str = typer.Option("sim", "--rig", help="'sim' or a rig configuration file (fixtures/rigs/*.yaml)."),
         seed: int = typer.Option(1, "--seed", help="Seed of the simulated unit and its noise."),

@@ -203,7 +203,7 @@ class RealRig:
             parts.append(self._ramp(p, index))
         else:
             parts.append(self._record(max(1, int(round(p.duration_s * self.fs))), index))
-        samples = pd.concat([x for x in parts if len(x)], ignore_index=True)
+        samples = _concat(parts)
         t_end = self.stream.next_sample / self.fs
         self.state.sample = self.stream.next_sample
         counts = self.stream.reset_counts()
@@ -219,16 +219,18 @@ class RealRig:
 
     def _remount(self, mount: np.ndarray) -> pd.DataFrame:
         """Stop the table and put the unit on ``mount`` (command or operator); transition samples."""
+        parts = []
         if self.state.table_rate != 0.0 or abs(self.table.rate()) > self.rate_tol:
             self.table.stop()
-            self._wait_settled(None, 0.0, -1)
+            parts.append(self._wait_settled(None, 0.0, -1))
         if self.fixture_mode == "command":
             self.table.mount(mount)
         elif self.fixture_mode == "prompt":  # 'fixed': mounted before the run, check() allows one mount only
             self.prompt(f"rig {self.name}: mount the unit {mount_label(mount)} and press Enter ")
         self._mounted = True
         self.state.mount = np.asarray(mount).tolist()
-        return self._frame(self.stream.take(until_host_t=time.monotonic()), -1)
+        parts.append(self._frame(self.stream.take(until_host_t=time.monotonic()), -1))
+        return _concat(parts)
 
     def _wait_settled(self, angle: float | None, rate: float, step: int) -> pd.DataFrame:
         """Record (label ``step``) until the read-back angle (if given) and rate are within tolerance."""
@@ -247,7 +249,7 @@ class RealRig:
                                f"within {self.settle_timeout_s:g} s (read back {np.degrees(a):.4f}°, "
                                f"{np.degrees(r):.4f} °/s)")
         parts.append(self._frame(self.stream.take(until_host_t=time.monotonic()), step))  # frames of the motion
-        return pd.concat([x for x in parts if len(x)], ignore_index=True) if parts else pd.DataFrame()
+        return _concat(parts)
 
     def _record(self, n: int, step: int, each_chunk: Callable[[Block], bool] | None = None) -> pd.DataFrame:
         """``n`` samples labelled ``step`` (or until ``each_chunk`` returns True when ``n`` is 0)."""
@@ -258,7 +260,7 @@ class RealRig:
             got += len(block.t)
             if each_chunk is not None and each_chunk(block):
                 break
-        return pd.concat(parts, ignore_index=True) if parts else pd.DataFrame()
+        return _concat(parts)
 
     def _soak(self, p: PlannedStep, index: int) -> pd.DataFrame:
         """Record until the unit temperature settles (slope over the window below the tolerance)."""
@@ -319,3 +321,8 @@ class RealRig:
             data.update(table_angle=np.zeros(0), table_rate=np.zeros(0))
         return pd.DataFrame(data)
 
+
+def _concat(parts: list[pd.DataFrame]) -> pd.DataFrame:
+    """The non-empty sample frames of ``parts`` in order (an empty frame if none)."""
+    full = [x for x in parts if len(x)]
+    return pd.concat(full, ignore_index=True) if full else pd.DataFrame()
