@@ -39,7 +39,7 @@ DEFAULTS = {
     "dwell_s": 10.0, "rate_dps": None, "ramp_c_per_min": 1.0, "ramp_dwell_s": None, "mount": "z-down",
     "settle_tol_c_per_min": 0.05, "settle_window_s": 120.0,
     "t_ref_c": 25.0, "max_order": 5, "order": None, "hysteresis": "auto", "ramp_window_s": 60.0,
-    "reference": None,
+    "reference": None, "position_sigma_deg": 0.01,
 }
 SIX = ("z-down", "z-up", "x-up", "x-down", "y-up", "y-down")
 RATE_MOUNTS = ("z-down", "x-up", "y-up")
@@ -108,7 +108,9 @@ def analyze(session, **options) -> ProcedureResult:
     if opts["reference"]:  # a calibration JSON (e.g. turntable) for the ramp fit's M and G
         ref = CalibrationSet.load(opts["reference"])
         reference = {t: ref.model(t) for t in ("gyro", "accel") if t in ref.triads}
-    result = analyze_thermal(session, reference=reference, **{k: opts[k] for k in _ANALYSIS_KEYS})
+    sigma = opts["position_sigma_deg"]
+    result = analyze_thermal(session, reference=reference, **{k: opts[k] for k in _ANALYSIS_KEYS},
+                             position_sigma=sigma if sigma == "auto" else float(np.radians(sigma)))
     return ProcedureResult(NAME, result.to_dict(), to_calibration(result, session.unit), result,
                            _summary(result), list(result.warnings))
 

@@ -441,13 +441,16 @@ def _turntable():
 
 
 def soak_points(session, triads=("gyro", "accel"), settle_tol_c_per_min: float = 0.05,
-                settle_window_s: float = 120.0) -> tuple[dict[str, list[SoakPoint]], list[str]]:
+                settle_window_s: float = 120.0, position_sigma: float | str = 0.0
+                ) -> tuple[dict[str, list[SoakPoint]], list[str]]:
     """Per-soak bias and scale factor of each triad, from the turntable estimators.
 
     For each soak group the accelerometer is fitted with ``fit_accel`` on the group's static
     steps; the gyro bias with ``fit_gyro_static`` on the same steps and, when the group has
     rate steps, the gyro scale factor with ``fit_gyro_rate`` (else not observed, NaN). The
-    soak's temperature is the mean unit temperature over its measurement steps; a soak whose
+    ``position_sigma`` (rad, or ``"auto"``) is the fixture's 1-sigma repeatability passed to the
+    turntable estimators. The soak's temperature is the mean unit temperature over its
+    measurement steps; a soak whose
     unit temperature still moves
     during the measurement steps (regression slope at or above ``settle_tol_c_per_min``) is
     reported in the warnings naming the step and flagged ``settled=False`` (left out of the
@@ -495,11 +498,11 @@ def soak_points(session, triads=("gyro", "accel"), settle_tol_c_per_min: float =
         rates = [i for i in g.steps if session.step(i).kind == "rate"]
         for triad in triads:
             if triad == "accel":
-                fit = tt.fit_accel(session, steps=statics)
+                fit = tt.fit_accel(session, steps=statics, position_sigma=position_sigma)
                 bias, bias_s = fit.bias, fit.bias_sigma
                 scale, scale_s = np.diag(fit.scale_misalignment), np.diag(fit.scale_misalignment_sigma)
             else:
-                rfit = tt.fit_gyro_rate(session, steps=rates) if rates else None
+                rfit = tt.fit_gyro_rate(session, steps=rates, position_sigma=position_sigma) if rates else None
                 m = None if rfit is None else np.where(np.isfinite(rfit.scale_misalignment_sigma),
                                                        rfit.scale_misalignment, 0.0)
                 fit = tt.fit_gyro_static(session, steps=statics, scale_misalignment=m)
@@ -690,9 +693,11 @@ def fit_soaks(points: dict[str, list[SoakPoint]], t_ref_c: float = 25.0, max_ord
 
 def analyze_thermal(session, triads=("gyro", "accel"), t_ref_c: float = 25.0, max_order: int = MAX_ORDER,
                     order: int | None = None, hysteresis: str = "auto", settle_tol_c_per_min: float = 0.05,
-                    settle_window_s: float = 120.0, ramp_window_s: float = 60.0, reference=None) -> ThermalResult:
+                    settle_window_s: float = 120.0, ramp_window_s: float = 60.0, reference=None,
+                    position_sigma: float | str = 0.0) -> ThermalResult:
     """Thermal analysis of a session with soak steps (preferred) or ramp steps.
 
+    ``position_sigma`` (rad): the fixture's 1-sigma repeatability, for the per-soak fits.
     ``reference`` maps triad name -> TriadModel for the ramp fit's known-input term (optional).
     """
     warnings: list[str] = []
@@ -702,7 +707,7 @@ def analyze_thermal(session, triads=("gyro", "accel"), t_ref_c: float = 25.0, ma
         raise SessionError(f"{session.name}: no soak step followed by measurement steps and no ramp step: "
                            "not a thermal session")
     if soak_groups(session):
-        points, w = soak_points(session, triads, settle_tol_c_per_min, settle_window_s)
+        points, w = soak_points(session, triads, settle_tol_c_per_min, settle_window_s, position_sigma)
         warnings += w
         fits = fit_soaks(points, t_ref_c, max_order, order, hysteresis)
         temps = [p.temperature_c for pts in points.values() for p in pts if p.settled]
