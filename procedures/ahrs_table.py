@@ -38,7 +38,7 @@ from workbench.nav import ahrs
 from workbench.nav.compensate import check_calibration, compensate, imu_samples, process_noise
 from workbench.nav.strapdown import attitude_errors
 from workbench.nav.truth import declination, mount_segments, reference_gyro_bias, table_truth
-from workbench.procedure import ProcedureResult
+from workbench.procedure import ProcedureResult, procedure_options
 from workbench.sequence import Hold, Index, Rotate, Sequence, mount_from_euler
 from workbench.session import Session
 
@@ -64,16 +64,9 @@ _SEQUENCE_KEYS = ("mounts", "rates_dps", "rotate_s", "index_deg", "dwell_s")
 _FILTERS = ("kalman", "complementary")
 
 
-def _opts(options: dict) -> dict:
-    unknown = set(options) - set(DEFAULTS)
-    if unknown:
-        raise ProcedureError(f"{NAME}: unknown option(s) {', '.join(sorted(unknown))} (known: {', '.join(DEFAULTS)})")
-    return {**DEFAULTS, **options}
-
-
 def sequence(spec, **options) -> Sequence:
     """Per tilted mount: hold, rotate, index, rotate back the other way, hold."""
-    o = _opts(options)
+    o = procedure_options(NAME, options, DEFAULTS)
     if "mag" not in getattr(spec, "triads", ("mag",)):
         raise ProcedureError(f"{NAME}: the unit has no magnetometer (the AHRS heading needs one)")
     r1, r2 = (float(np.radians(r)) for r in o["rates_dps"])
@@ -156,7 +149,7 @@ def _metrics(segs: list[dict]) -> dict:
 
 def analyze(session: Session, calibration: CalibrationSet | None = None, **options) -> ProcedureResult:
     """Raw and calibrated AHRS runs against the table (see the module docstring)."""
-    o = _opts(options)
+    o = procedure_options(NAME, options, DEFAULTS)
     warnings = check_calibration(calibration, session.unit.serial, TRIADS, bool(o["force"]), NAME)
     if not session.has_mag:
         raise AnalysisError(f"{session.name}: samples have no magnetometer columns mx, my, mz (the AHRS needs them)")

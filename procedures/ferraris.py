@@ -23,12 +23,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from procedures.multiposition import fit_summary, options, position_sigma, result_dict
+from procedures.multiposition import fit_summary, position_sigma, result_dict
 from workbench.analysis.gyro_fit import fit_gyro_turns, turn_checks
 from workbench.analysis.turntable import fit_accel, fit_gyro_static
 from workbench.calset import CalibrationSet
 from workbench.errors import ProcedureError
-from workbench.procedure import ProcedureResult
+from workbench.procedure import ProcedureResult, procedure_options
 from workbench.sequence import Hold, Rotate, Sequence
 from workbench.session import Session
 
@@ -51,7 +51,7 @@ _ANALYSIS_KEYS = ("position_sigma_deg", "earth_rate", "settle_s", "window_s")
 
 def sequence(spec, **opts) -> Sequence:
     """Six holds, then one turn about each body axis held up (see the module docstring)."""
-    o = options(opts, _SEQUENCE_KEYS, DEFAULTS, NAME)
+    o = procedure_options(NAME, opts, DEFAULTS, _SEQUENCE_KEYS)
     turn, rate = float(o["turn_deg"]), float(o["turn_rate_dps"])
     if turn == 0 or not rate > 0:
         raise ProcedureError(f"{NAME}: turn_deg must be non-zero and turn_rate_dps positive")
@@ -66,7 +66,7 @@ def sequence(spec, **opts) -> Sequence:
 
 def analyze(session: Session, **opts) -> ProcedureResult:
     """Ferraris calibration of a session (see the module docstring)."""
-    o = options(opts, _ANALYSIS_KEYS, DEFAULTS, NAME)
+    o = procedure_options(NAME, opts, DEFAULTS, _ANALYSIS_KEYS)
     settle = float(o["settle_s"])
     acc = fit_accel(session, None, "none", settle_s=settle, position_sigma=position_sigma(o["position_sigma_deg"]))
     static = fit_gyro_static(session, None, str(o["earth_rate"]), settle_s=settle)

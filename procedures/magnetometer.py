@@ -24,7 +24,7 @@ from workbench import units
 from workbench.analysis.magnetometer import calibrate, points_from_session, triad_calibration
 from workbench.calset import CalibrationSet
 from workbench.errors import AnalysisError, ProcedureError
-from workbench.procedure import ProcedureResult
+from workbench.procedure import ProcedureResult, procedure_options
 from workbench.sequence import Hold, Rotate, Sequence, mount_from_euler
 from workbench.session import Session
 
@@ -49,17 +49,9 @@ _SEQUENCE_KEYS = ("tilts_deg", "mode", "yaw_steps", "dwell_s", "rate_dps")
 _ANALYSIS_KEYS = ("method", "robust", "field_norm_ut", "declination_deg", "accel_calibration", "igrf")
 
 
-def _options(options: dict, keys: tuple[str, ...]) -> dict:
-    unknown = set(options) - set(DEFAULTS)
-    if unknown:
-        raise ProcedureError(f"{NAME}: unknown option(s) {', '.join(sorted(unknown))} "
-                             f"(known: {', '.join(DEFAULTS)})")
-    return {k: options.get(k, DEFAULTS[k]) for k in keys}
-
-
 def sequence(spec, **options) -> Sequence:
     """Yaw sweeps (static steps or one continuous revolution) at each fixture tilt."""
-    o = _options(options, _SEQUENCE_KEYS)
+    o = procedure_options(NAME, options, DEFAULTS, _SEQUENCE_KEYS)
     if getattr(spec, "mag", None) is None:
         raise ProcedureError(f"{NAME}: the unit has no magnetometer")
     if o["mode"] not in ("steps", "continuous"):
@@ -83,7 +75,7 @@ def sequence(spec, **options) -> Sequence:
 
 def analyze(session: Session, **options) -> ProcedureResult:
     """Calibrate the magnetometer from a session of yaw sweeps (see the module docstring)."""
-    o = _options(options, _ANALYSIS_KEYS)
+    o = procedure_options(NAME, options, DEFAULTS, _ANALYSIS_KEYS)
     points = points_from_session(session)
     decl = None if o["declination_deg"] is None else float(np.radians(o["declination_deg"]))
     accel = None if o["accel_calibration"] is None else CalibrationSet.load(o["accel_calibration"]).model("accel")

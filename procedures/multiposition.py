@@ -24,7 +24,7 @@ from workbench import units
 from workbench.analysis.turntable import TriadFit, fit_accel, fit_gyro_static
 from workbench.calset import CalibrationSet
 from workbench.errors import ProcedureError
-from workbench.procedure import ProcedureResult
+from workbench.procedure import ProcedureResult, procedure_options
 from workbench.sequence import Hold, Sequence, mount_matrix
 from workbench.session import Session
 
@@ -44,14 +44,6 @@ DEFAULTS = {
 _SEQUENCE_KEYS = ("positions", "dwell_s", "table_angle_deg")
 _ANALYSIS_KEYS = ("nonlinearity", "earth_rate", "position_sigma_deg", "settle_s")
 POSITION_SETS = (6, 12, 18, 24)
-
-
-def options(options: dict, keys: tuple[str, ...], defaults: dict, name: str) -> dict:
-    """The options of ``keys`` with defaults; ProcedureError naming unknown ones."""
-    unknown = set(options) - set(defaults)
-    if unknown:
-        raise ProcedureError(f"{name}: unknown option(s) {', '.join(sorted(unknown))} (known: {', '.join(defaults)})")
-    return {k: options.get(k, defaults[k]) for k in keys}
 
 
 def _edge_mount(up_body: np.ndarray) -> np.ndarray:
@@ -84,7 +76,7 @@ def positions(n: int) -> list[tuple[object, str, float]]:
 
 def sequence(spec, **opts) -> Sequence:
     """Static holds at the chosen position set (see the module docstring)."""
-    o = options(opts, _SEQUENCE_KEYS, DEFAULTS, NAME)
+    o = procedure_options(NAME, opts, DEFAULTS, _SEQUENCE_KEYS)
     dwell = float(o["dwell_s"])
     if not dwell > 0:
         raise ProcedureError(f"{NAME}: dwell_s={dwell} must be positive")
@@ -102,7 +94,7 @@ def position_sigma(value) -> float | str:
 
 def analyze(session: Session, **opts) -> ProcedureResult:
     """Accelerometer and gyro static fits of all static steps (see the module docstring)."""
-    o = options(opts, _ANALYSIS_KEYS, DEFAULTS, NAME)
+    o = procedure_options(NAME, opts, DEFAULTS, _ANALYSIS_KEYS)
     acc = fit_accel(session, None, str(o["nonlinearity"]), settle_s=float(o["settle_s"]),
                     position_sigma=position_sigma(o["position_sigma_deg"]))
     gyr = fit_gyro_static(session, None, str(o["earth_rate"]), settle_s=float(o["settle_s"]))

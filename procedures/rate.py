@@ -17,11 +17,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from procedures.multiposition import fit_summary, options, position_sigma, result_dict
+from procedures.multiposition import fit_summary, position_sigma, result_dict
 from workbench.analysis.turntable import fit_gyro_rate
 from workbench.calset import CalibrationSet
 from workbench.errors import ProcedureError
-from workbench.procedure import ProcedureResult
+from workbench.procedure import ProcedureResult, procedure_options
 from workbench.sequence import Rotate, Sequence
 from workbench.session import Session
 
@@ -51,7 +51,7 @@ def rate_set(full_scale: float, rates_fs, max_rate: float) -> list[float]:
 
 def sequence(spec, **opts) -> Sequence:
     """CW and CCW whole revolutions at each rate about each mount's table axis."""
-    o = options(opts, _SEQUENCE_KEYS, DEFAULTS, NAME)
+    o = procedure_options(NAME, opts, DEFAULTS, _SEQUENCE_KEYS)
     if getattr(spec, "gyro", None) is None:
         raise ProcedureError(f"{NAME}: the unit has no gyro")
     fs = float(spec.gyro.range)
@@ -76,7 +76,7 @@ def full_scale(session: Session, value) -> float:
 
 def analyze(session: Session, **opts) -> ProcedureResult:
     """Gyro rate fit of all rate steps (see the module docstring)."""
-    o = options(opts, _ANALYSIS_KEYS, DEFAULTS, NAME)
+    o = procedure_options(NAME, opts, DEFAULTS, _ANALYSIS_KEYS)
     fit = fit_gyro_rate(session, position_sigma=position_sigma(o["position_sigma_deg"]))
     fs = full_scale(session, o["full_scale_dps"])
     calset = CalibrationSet(unit=session.unit, triads={"gyro": fit.to_calibration()},

@@ -29,12 +29,12 @@ import numpy as np
 
 from workbench import units
 from workbench.calset import CalibrationSet
-from workbench.errors import AnalysisError, ProcedureError
+from workbench.errors import AnalysisError
 from workbench.nav import zupt
 from workbench.nav.compensate import check_calibration, compensate, imu_samples, process_noise
 from workbench.nav.strapdown import attitude_errors, euler_rph
 from workbench.nav.truth import reference_gyro_bias, table_truth
-from workbench.procedure import ProcedureResult
+from workbench.procedure import ProcedureResult, procedure_options
 from workbench.sequence import Hold, Sequence, mount_matrix
 from workbench.session import Session
 
@@ -60,16 +60,9 @@ _SEQUENCE_KEYS = ("positions", "dwell_s")
 _G0 = units.G0
 
 
-def _opts(options: dict) -> dict:
-    unknown = set(options) - set(DEFAULTS)
-    if unknown:
-        raise ProcedureError(f"{NAME}: unknown option(s) {', '.join(sorted(unknown))} (known: {', '.join(DEFAULTS)})")
-    return {**DEFAULTS, **options}
-
-
 def sequence(spec, **options) -> Sequence:
     """A static hold of ``dwell_s`` at each ``[mount, table angle °]`` of ``positions``."""
-    o = _opts(options)
+    o = procedure_options(NAME, options, DEFAULTS)
     steps = []
     for mount, angle_deg in o["positions"]:
         mount_matrix(mount)  # raises on an unknown mount
@@ -143,7 +136,7 @@ def _block(positions: list[dict]) -> dict:
 
 def analyze(session: Session, calibration: CalibrationSet | None = None, **options) -> ProcedureResult:
     """Raw and calibrated ZUPT alignment at each static position (see the module docstring)."""
-    o = _opts(options)
+    o = procedure_options(NAME, options, DEFAULTS)
     warnings = check_calibration(calibration, session.unit.serial, ("gyro", "accel"), bool(o["force"]), NAME)
     steps = session.steps_of_kind("static")
     if not steps:

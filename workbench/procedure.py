@@ -121,3 +121,16 @@ def run_analysis(proc, session: Session, options: Mapping | None = None, out_dir
         store.add_result(result.procedure, session.id, session.unit.serial, json.loads(result_json(result)),
                          result.calibration)
     return result
+
+
+def procedure_options(name: str, options: Mapping, defaults: Mapping, keys: tuple[str, ...] | None = None) -> dict:
+    """A procedure's options (``keys`` of them, default all) with its defaults filled in.
+
+    Raises ProcedureError naming any option the procedure does not know.
+    """
+    from workbench.errors import ProcedureError
+
+    unknown = set(options) - set(defaults)
+    if unknown:
+        raise ProcedureError(f"{name}: unknown option(s) {', '.join(sorted(unknown))} (known: {', '.join(defaults)})")
+    return {k: options.get(k, defaults[k]) for k in (keys if keys is not None else defaults)}
