@@ -4,7 +4,7 @@ Prints both wall times, their ratio, and whether the calibrations are identical.
 ``--allan-samples`` it also writes a long single-channel-per-axis Allan session and reports the
 peak resident memory of a worker analysing it (bounded-memory streaming path).
 
-    python benchmarks/fleet_batch.py --units 100 --workers 2 [--allan-samples 100000000]
+    python -m benchmarks.fleet_batch --units 100 --workers 2 [--allan-samples 100000000]   (from the repo root)
 """
 
 from __future__ import annotations

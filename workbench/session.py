@@ -157,7 +157,12 @@ class Session:
 
     @property
     def has_mag(self) -> bool:
-        return all(c in self.samples.columns for c in MAG)
+        """Whether the samples have magnetometer columns (read from the file's schema when lazy)."""
+        if self.samples is not None:
+            return all(c in self.samples.columns for c in MAG)
+        import pyarrow.parquet as pq
+
+        return all(c in pq.read_schema(self.path / "samples.parquet").names for c in MAG)
 
     @property
     def name(self) -> str:

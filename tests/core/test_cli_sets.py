@@ -1,6 +1,5 @@
 import json
 
-import numpy as np
 import pytest
 
 from tests.core.test_store import a_set

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from workbench.earth import earth_rate_ned, normal_gravity
-from workbench.rigconfig import TurntableLimits, load_rig_config
+from workbench.rigconfig import load_rig_config
 from workbench.sequence import Carousel, Hold, Index, Ramp, Rotate, Sequence, Soak
 from workbench.sim import simulate
 

@@ -134,6 +134,19 @@ def stream_deviation_from(batches: Batches, columns: list[str] | tuple[str, ...]
     return StreamedDeviation(curve, decimated)
 
 
+def parquet_batches(path: str | Path, columns: list[str] | tuple[str, ...], rows: int = 1 << 20) -> Batches:
+    """A factory of iterators over (rows, C) float blocks of ``columns`` of a Parquet file."""
+    path = Path(path)
+    try:
+        pf = pq.ParquetFile(path, pre_buffer=False)  # pre-buffering holds whole row groups twice
+    except Exception as exc:  # pyarrow raises several types for unreadable files
+        raise AnalysisError(f"{path}: cannot read Parquet ({type(exc).__name__}: {str(exc)[:120]})") from None
+    missing = [c for c in columns if c not in pf.schema_arrow.names]
+    if missing:
+        raise AnalysisError(f"{path}: no column(s) {', '.join(missing)} (has {', '.join(pf.schema_arrow.names)})")
+    return lambda: _batches(pf, list(columns), rows)
+
+
 def stream_deviation(path: str | Path, columns: list[str] | tuple[str, ...], rate: float, kind: str = "oadev",
                      taus: str | np.ndarray = "octave", rows: int = 1 << 20, block: int = 1 << 22,
                      window: int = 1 << 22, tmp_dir: str | Path | None = None) -> DeviationCurve:
@@ -142,17 +155,8 @@ def stream_deviation(path: str | Path, columns: list[str] | tuple[str, ...], rat
     :func:`stream_deviation_from` over the file's batches of ``rows`` rows (~0.3 GB peak with
     the defaults, whatever the file size).
     """
-    path = Path(path)
-    source = str(path)
-    try:
-        pf = pq.ParquetFile(path, pre_buffer=False)  # pre-buffering holds whole row groups twice
-    except Exception as exc:  # pyarrow raises several types for unreadable files
-        raise AnalysisError(f"{source}: cannot read Parquet ({type(exc).__name__}: {str(exc)[:120]})") from None
-    missing = [c for c in columns if c not in pf.schema_arrow.names]
-    if missing:
-        raise AnalysisError(f"{source}: no column(s) {', '.join(missing)} (has {', '.join(pf.schema_arrow.names)})")
-    return stream_deviation_from(lambda: _batches(pf, list(columns), rows), columns, rate, kind, taus, block, window,
-                                 tmp_dir, source).curve
+    return stream_deviation_from(parquet_batches(path, columns, rows), columns, rate, kind, taus, block, window,
+                                 tmp_dir, str(path)).curve
 
 
 def _write_phase(batches: Batches, rate: float, mean: np.ndarray, files: list[Path], m: np.ndarray, keep: int,

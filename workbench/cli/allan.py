@@ -15,8 +15,7 @@ import pandas as pd
 import typer
 from rich.table import Table
 
-from workbench.analysis.allan_ci import alpha_from_slope, confidence
-from workbench.analysis.allan_fit import TERMS, AllanAnalysis, analyze_record, fit_terms
+from workbench.analysis.allan_fit import TERMS, AllanAnalysis, analyze_record
 from workbench.cli import out
 from workbench.errors import AnalysisError, SessionError
 from workbench.session import ACCEL, GYRO, load_session, read_samples
@@ -164,10 +163,10 @@ def register(app: typer.Typer) -> None:
 
 
 def _streamed(source: Path, cols: list[str] | None, rate: float | None, taus: str) -> AllanAnalysis:
-    from workbench.analysis.allan_stream import stream_deviation
+    """The full analysis (deviations, intervals with noise identification, term fit) streamed."""
+    from workbench.analysis.allan_fit import analyze_stream
+    from workbench.analysis.allan_stream import parquet_batches
 
     if source.suffix != ".parquet" or cols is None or rate is None:
         raise AnalysisError(f"{source}: --stream needs a .parquet file, --columns and --rate")
-    curve = stream_deviation(source, cols, rate, "oadev", taus)
-    ci = confidence(curve, alpha=alpha_from_slope(curve))
-    return AllanAnalysis(ci, fit_terms(ci), quantity_of(cols))
+    return analyze_stream(parquet_batches(source, cols), rate, cols, quantity_of(cols), taus, str(source))
