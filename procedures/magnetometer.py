@@ -79,8 +79,10 @@ def analyze(session: Session, **options) -> ProcedureResult:
     points = points_from_session(session)
     decl = None if o["declination_deg"] is None else float(np.radians(o["declination_deg"]))
     accel = None if o["accel_calibration"] is None else CalibrationSet.load(o["accel_calibration"]).model("accel")
+    # the field magnitude: the option, else the reference the rig's site records, else unknown
+    norm = o["field_norm_ut"] if o["field_norm_ut"] is not None else session.site.field_norm_ut
     cal = calibrate(points, method=str(o["method"]), robust=bool(o["robust"]),
-                    field_norm_ut=None if o["field_norm_ut"] is None else float(o["field_norm_ut"]),
+                    field_norm_ut=None if norm is None else float(norm),
                     declination=decl, accel_model=accel, reference=_igrf(session) if o["igrf"] else None,
                     source=session.name)
     fit = cal.fit

@@ -81,9 +81,10 @@ def rig_config_from_dict(d: Mapping, source: str = "<rig>") -> RigConfig:
     s = d["site"]
     if not isinstance(s, Mapping) or s.get("latitude_deg") is None:
         raise WorkbenchError(f"{source}: missing field 'site.latitude_deg'")
-    site = Site(_get(s, "latitude_deg", None, source), _get(s, "longitude_deg", 0.0, source),
-                _get(s, "height_m", 0.0, source), _get(s, "table_zero_azimuth_deg", None, source))
     mf = d.get("magnetic_field", {}) or {}
+    site = Site(_get(s, "latitude_deg", None, source), _get(s, "longitude_deg", 0.0, source),
+                _get(s, "height_m", 0.0, source), _get(s, "table_zero_azimuth_deg", None, source),
+                _get(mf, "intensity_ut", None, source))  # the lab's reference field, when it measured one
     field_ned = magnetic_field_ned(_get(mf, "intensity_ut", 48.0, source), _get(mf, "dip_deg", 60.0, source),
                                    _get(mf, "declination_deg", 0.0, source))
     tt, ch = d.get("turntable", {}) or {}, d.get("chamber", {}) or {}

@@ -43,6 +43,7 @@ class Site:
     longitude_deg: float = 0.0
     height_m: float = 0.0
     table_zero_azimuth_deg: float | None = None
+    field_norm_ut: float | None = None  # reference magnetic-field magnitude at the rig, µT (None = unknown)
 
     @property
     def latitude(self) -> float:
@@ -60,8 +61,11 @@ class Site:
         return float(normal_gravity(self.latitude, self.height_m))
 
     def to_dict(self) -> dict:
-        return {"latitude_deg": self.latitude_deg, "longitude_deg": self.longitude_deg,
-                "height_m": self.height_m, "table_zero_azimuth_deg": self.table_zero_azimuth_deg}
+        out = {"latitude_deg": self.latitude_deg, "longitude_deg": self.longitude_deg,
+               "height_m": self.height_m, "table_zero_azimuth_deg": self.table_zero_azimuth_deg}
+        if self.field_norm_ut is not None:
+            out["field_norm_ut"] = self.field_norm_ut
+        return out
 
 
 @dataclass(frozen=True)
@@ -444,7 +448,8 @@ def load_session(directory: str | Path, require_complete: bool = True, lazy: boo
         id=str(fields.get("id") or uuid.uuid5(uuid.NAMESPACE_URL, str(directory.resolve()))),
         unit=Unit(str(u.get("serial", "")), str(u.get("model", ""))),
         site=Site(float(s["latitude_deg"]), float(s.get("longitude_deg") or 0.0), float(s.get("height_m") or 0.0),
-                  None if s.get("table_zero_azimuth_deg") is None else float(s["table_zero_azimuth_deg"])),
+                  None if s.get("table_zero_azimuth_deg") is None else float(s["table_zero_azimuth_deg"]),
+                  None if s.get("field_norm_ut") is None else float(s["field_norm_ut"])),
         sample_rate_hz=float(fields["sample_rate_hz"]),
         procedure=str(fields.get("procedure", "")),
         steps=steps,
