@@ -26,7 +26,7 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass
 from datetime import UTC, datetime
@@ -566,3 +566,26 @@ def page_link(page: str, label: str) -> None:
         st.page_link(f"dashboard/pages/{Path(page).name}", label=label)
     except StreamlitAPIException:  # the page was run on its own (no st.navigation)
         st.caption(f"{label} ({page})")
+
+
+def run_panel(name: str, key: str, context: str, check: Callable[[Any], None] | None = None) -> None:
+    """Grade, options, sequence preview, seed and a Start button for procedure ``name`` on the simulated rig.
+
+    ``check(spec)`` may show warnings for the chosen grade (e.g. a procedure that does not apply).
+    """
+    grade = grade_picker(key=f"{key}.grade")
+    with guarded(context):
+        from workbench import registry
+
+        proc = registry.procedure(name)
+        options = option_inputs(proc, key=f"{key}.run")
+        if grade is None:
+            return
+        if check is not None:
+            check(load_spec(grade))
+        seq = build_sequence(proc, grade, options)
+        show_sequence(seq)
+        seed = st.number_input("Seed", value=1, step=1, key=f"{key}.seed")
+        if st.button("Start run", key=f"{key}.start"):
+            folder = start_run(name, grade, int(seed), options, seq.duration_s, len(seq.expand()))
+            st.success(f"started: {folder}")

@@ -70,19 +70,7 @@ name = st.selectbox("Procedure", list(PROCEDURES), format_func=PROCEDURES.get, k
 tab_run, tab_result = st.tabs(["Run on the simulated rig", "Result of a session"])
 
 with tab_run:
-    grade = common.grade_picker(key="tt.grade")
-    with common.guarded("turntable run"):
-        from workbench import registry
-
-        proc = registry.procedure(name)
-        options = common.option_inputs(proc, key="tt.run")
-        if grade is not None:
-            seq = common.build_sequence(proc, grade, options)
-            common.show_sequence(seq)
-            seed = st.number_input("Seed", value=1, step=1, key="tt.seed")
-            if st.button("Start run", key="tt.start"):
-                folder = common.start_run(name, grade, int(seed), options, seq.duration_s, len(seq.expand()))
-                st.success(f"started: {folder}")
+    common.run_panel(name, "tt", "turntable run")
 
 with tab_result:
     result = common.result_picker(name, key="tt.result")

@@ -11,6 +11,7 @@ import pandas as pd
 import streamlit as st
 
 from dashboard import common
+from workbench import registry
 
 TITLE = "North-finding"
 PROCEDURES = {"maytagging": "Maytagging (±180°, thesis seq. 1-7)", "earth-rate": "Earth-rate sweep (seq. 0)",
@@ -41,22 +42,12 @@ name = st.selectbox("Procedure", list(PROCEDURES), format_func=PROCEDURES.get, k
 tab_run, tab_result, tab_compare = st.tabs(["Run", "Result", "Compare sessions"])
 
 with tab_run:
-    grade = common.grade_picker(key="nf.grade")
-    with common.guarded("north-finding run"):
-        from workbench import registry
-
+    def _applies(spec) -> None:
         proc = registry.procedure(name)
-        options = common.option_inputs(proc, key="nf.run")
-        if grade is not None:
-            spec = common.load_spec(grade)
-            if hasattr(proc, "applies") and not proc.applies(spec):
-                st.warning(f"{spec.name}: the gyros do not resolve the Earth rate (pair 1σ > 0.1 rad)")
-            seq = common.build_sequence(proc, grade, options)
-            common.show_sequence(seq)
-            seed = st.number_input("Seed", value=1, step=1, key="nf.seed")
-            if st.button("Start run", key="nf.start"):
-                folder = common.start_run(name, grade, int(seed), options, seq.duration_s, len(seq.expand()))
-                st.success(f"started: {folder}")
+        if hasattr(proc, "applies") and not proc.applies(spec):
+            st.warning(f"{spec.name}: the gyros do not resolve the Earth rate (pair 1σ > 0.1 rad)")
+
+    common.run_panel(name, "nf", "north-finding run", _applies)
 
 with tab_result:
     result = common.result_picker(name, key="nf.result")

@@ -40,19 +40,7 @@ tab_run, tab_result, tab_runs = st.tabs(["Run", "Analyse a session", "Finished r
 with tab_run:
     st.caption("On the simulated rig the run first calibrates the unit with the calibration procedures, "
                "then records and analyses the validation sequence.")
-    grade = common.grade_picker(key="nav.grade")
-    with common.guarded("navigation run"):
-        from workbench import registry
-
-        proc = registry.procedure(name)
-        options = common.option_inputs(proc, key="nav.run")
-        if grade is not None:
-            seq = common.build_sequence(proc, grade, options)
-            common.show_sequence(seq)
-            seed = st.number_input("Seed", value=1, step=1, key="nav.seed")
-            if st.button("Start run", key="nav.start"):
-                folder = common.start_run(name, grade, int(seed), options, seq.duration_s, len(seq.expand()))
-                st.success(f"started: {folder}")
+    common.run_panel(name, "nav", "navigation run")
 
 with tab_result:
     folder = common.session_picker(name, key="nav.session")
