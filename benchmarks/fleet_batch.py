@@ -43,14 +43,21 @@ def main() -> None:
     t0 = time.perf_counter()
     serial = run_batch("multiposition", dirs)
     t_serial = time.perf_counter() - t0
+    t0 = time.perf_counter()
     with cluster_client("local", args.workers) as client:
+        t_start = time.perf_counter() - t0
         t0 = time.perf_counter()
-        parallel = run_batch("multiposition", dirs, client)
+        parallel = run_batch("multiposition", dirs, client)  # first batch: workers import the library
         t_parallel = time.perf_counter() - t0
-    same = _coefficients(serial) == _coefficients(parallel)
-    print(f"serial:            {t_serial:8.1f} s ({len(serial.succeeded)} ok, {len(serial.failures)} failed)")
-    print(f"LocalCluster x{args.workers}:   {t_parallel:8.1f} s ({len(parallel.succeeded)} ok)")
-    print(f"speed-up:          {t_serial / t_parallel:8.2f}x")
+        t0 = time.perf_counter()
+        warm = run_batch("multiposition", dirs, client)
+        t_warm = time.perf_counter() - t0
+    same = _coefficients(serial) == _coefficients(parallel) == _coefficients(warm)
+    print(f"serial (this process, library imported): {t_serial:8.1f} s ({len(serial.succeeded)} ok, "
+          f"{len(serial.failures)} failed)")
+    print(f"LocalCluster x{args.workers} start-up:              {t_start:8.1f} s")
+    print(f"LocalCluster x{args.workers}, first batch:          {t_parallel:8.1f} s  speed-up {t_serial / t_parallel:5.2f}x")
+    print(f"LocalCluster x{args.workers}, warm workers:         {t_warm:8.1f} s  speed-up {t_serial / t_warm:5.2f}x")
     print(f"results identical: {same}")
     if args.allan_samples:
         from benchmarks.allan_session_memory import worker_peak_memory

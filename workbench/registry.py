@@ -38,7 +38,17 @@ def procedures() -> dict[str, ModuleType]:
 
 
 def procedure(name: str) -> ModuleType:
-    """The procedure module called ``name``; raises ProcedureError naming the known ones."""
+    """The procedure module called ``name``; raises ProcedureError naming the known ones.
+
+    The module ``procedures/<name with - as _>.py`` is imported alone (a batch worker need not
+    import every procedure); the full scan only names the known ones in the error.
+    """
+    try:
+        module = importlib.import_module(f"procedures.{name.replace('-', '_')}")
+        if getattr(module, "NAME", None) == name and hasattr(module, "analyze"):
+            return module
+    except ImportError:
+        pass
     procs = procedures()
     if name not in procs:
         raise ProcedureError(f"unknown procedure {name!r} (known: {', '.join(sorted(procs)) or 'none'})")
