@@ -98,6 +98,8 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
                                   help="Unit grade fixture (fixtures/units/*.yaml) or grade name."),
         rig: str = typer.Option("sim", "--rig", help="'sim' or a rig configuration file (fixtures/rigs/*.yaml)."),
         seed: int = typer.Option(1, "--seed", help="Seed of the simulated unit and its noise."),
+        serial: str = typer.Option(None, "--serial", help="Serial of the unit under test (on a real rig; "
+                                                           "default: the simulated unit's, <grade>-<seed>)."),
         out_dir: Path = typer.Option(None, "--out", help="Output folder (default runs/<procedure>-<serial>-<time>)."),
         resume: Path = typer.Option(None, "--resume", help="Continue an interrupted session folder."),
         option: list[str] = typer.Option(None, "--option", "-o", help="Sequence option key=value (repeatable)."),
@@ -118,7 +120,7 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
         return
     spec = load_spec(unit)
     cfg = load_rig_config(rig)
-    truth = draw_unit(spec, seed)
+    truth = draw_unit(spec, seed, serial=serial)
     if procedure_name == "campaign":
         out_dir = out_dir or _default_out("campaign", truth.serial)
         out.print(f"campaign for {truth.serial} ({spec.name}) on {cfg.name}, seed {seed} -> {out_dir}")
