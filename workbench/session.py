@@ -152,8 +152,29 @@ class Session:
         raise SessionError(f"{self.name}: no step {index}")
 
     def step_samples(self, index: int) -> pd.DataFrame:
-        """Samples labelled with step ``index``."""
-        return self.samples[self.samples["step"].to_numpy() == index]
+        """Samples labelled with step ``index`` (a row slice: a step's samples are contiguous)."""
+        rows = self._step_rows().get(index)
+        if rows is None:
+            return self.samples.iloc[0:0]
+        if isinstance(rows, slice):
+            return self.samples.iloc[rows]
+        return self.samples[rows]
+
+    def _step_rows(self) -> dict:
+        """Row slice (or boolean mask, for a step whose rows are not contiguous) of every step label."""
+        cache = self.__dict__.get("_rows")
+        if cache is None or cache[0] is not self.samples:
+            labels = self.samples["step"].to_numpy()
+            rows: dict = {}
+            if len(labels):
+                change = np.flatnonzero(np.diff(labels)) + 1
+                starts, stops = np.r_[0, change], np.r_[change, len(labels)]
+                for a, b in zip(starts, stops):
+                    lab = int(labels[a])
+                    rows[lab] = slice(int(a), int(b)) if lab not in rows else labels == lab
+            cache = (self.samples, rows)
+            self.__dict__["_rows"] = cache
+        return cache[1]
 
     def steps_of_kind(self, *kinds: str) -> list[StepRecord]:
         """Step records whose kind is one of ``kinds``."""
