@@ -252,9 +252,15 @@ class Session:
         return rz(angle) * Rotation.from_matrix(step.mount)
 
     def samples_sha256(self) -> str | None:
-        """SHA-256 of the samples file (None for a session that is not on disk)."""
+        """SHA-256 of the samples file (None for a session that is not on disk); read once."""
         f = samples_file(self.path) if self.path is not None else None
-        return file_sha256(f) if f is not None else None
+        if f is None:
+            return None
+        cached = self.__dict__.get("_sha256")
+        if cached is None or cached[0] != f:
+            cached = (f, file_sha256(f))
+            self.__dict__["_sha256"] = cached
+        return cached[1]
 
     def manifest(self) -> dict:
         """The ``session.json`` dict."""
