@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import typer
+from rich import box
 from rich.table import Table
 
 from workbench.calset import CalibrationSet, atomic_write_text, merge
@@ -39,10 +40,14 @@ def list_sets(unit: str = typer.Option(None, "--unit", help="Only this unit seri
         return
     if format != "table":
         raise typer.BadParameter(f"--format {format!r}: expected table or json")
-    t = Table("id", "unit", "model", "version", "created", "procedures", "approved")
+    t = Table(box=box.SIMPLE_HEAD, padding=(0, 1), pad_edge=False, collapse_padding=True, show_edge=False)
+    for name in ("id", "unit", "v", "created (UTC)"):
+        t.add_column(name, no_wrap=True)
+    t.add_column("procedures", min_width=16)
+    t.add_column("approved by", min_width=9)
     for i in infos:
-        t.add_row(i.id[:8], i.serial, i.model, str(i.version), i.created[:19], ", ".join(i.procedures),
-                  i.approved_by or "")
+        t.add_row(i.id[:8], f"{i.serial} ({i.model})" if i.model and i.model not in i.serial else i.serial,
+                  str(i.version), i.created[:16].replace("T", " "), ", ".join(i.procedures), i.approved_by or "")
     out.print(t)
 
 
