@@ -83,15 +83,8 @@ class LineTransport:
                     return ""
                 raw = self._port.read_until(self.rterm)
             except (serial.SerialException, OSError) as exc:
-                self.close()
-                if reconnected:
-                    raise RigError(f"{self.where}: connection lost during {command!r} ({short_error(exc)})") from None
+                reopen_once(self, command, exc, reconnected)
                 reconnected = True
-                try:
-                    self.open()
-                except RigError:
-                    raise RigError(f"{self.where}: connection lost during {command!r} ({short_error(exc)}) "
-                                   "and reconnecting failed") from None
                 continue
             if raw.endswith(self.rterm):
                 return raw[:-len(self.rterm)].decode(self.encoding, errors="replace").strip()
@@ -100,6 +93,22 @@ class LineTransport:
                 got = f"; partial reply {raw[:40]!r}" if raw else ""
                 raise RigError(f"{self.where}: no answer to {command!r} after {tries} tries "
                                f"(timeout {self.timeout_s:g} s{got})")
+
+
+def reopen_once(link, command: str, exc: BaseException, already_reopened: bool) -> None:
+    """After ``link`` lost its connection during ``command``: close it and reopen it once.
+
+    A second loss in the same exchange, or a reopen that fails, raises RigError naming the
+    device, the command and the cause. ``link`` has ``where``, ``open()`` and ``close()``.
+    """
+    link.close()
+    lost = f"{link.where}: connection lost during {command!r} ({short_error(exc)})"
+    if already_reopened:
+        raise RigError(lost) from None
+    try:
+        link.open()
+    except RigError:
+        raise RigError(f"{lost} and reconnecting failed") from None
 
 
 def short_error(exc: BaseException) -> str:

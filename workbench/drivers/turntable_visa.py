@@ -24,7 +24,7 @@ import numpy as np
 import pyvisa
 from pyvisa.constants import StatusCode
 
-from workbench.drivers.transport import reply_number, short_error
+from workbench.drivers.transport import reopen_once, reply_number, short_error
 from workbench.errors import RigError
 
 DEFAULT_COMMANDS = {
@@ -116,15 +116,8 @@ class VisaTurntable:
                         raise RigError(f"{self.where}: no answer to {command!r} after {tries} tries "
                                        f"(timeout {self.timeout_s:g} s)") from None
                     continue
-                if reopened:
-                    self.close()
-                    raise RigError(f"{self.where}: connection lost during {command!r} ({short_error(exc)})") from None
+                reopen_once(self, command, exc, reopened)
                 reopened = True
-                try:
-                    self.open()
-                except RigError:
-                    raise RigError(f"{self.where}: connection lost during {command!r} ({short_error(exc)}) "
-                                   "and reopening failed") from None
                 continue
             except (pyvisa.errors.Error, OSError) as exc:
                 self.close()
