@@ -1,5 +1,6 @@
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -25,12 +26,21 @@ record_procedure(proc, spec, draw_unit(spec, 5), load_rig_config("sim"), 5, Path
 """
 
 
+def _recorded_steps(out) -> int:
+    try:
+        return len(json.loads((out / "session.json").read_text())["steps"])
+    except (FileNotFoundError, json.JSONDecodeError, KeyError):
+        return 0
+
+
 def test_killed_run_leaves_completed_steps_readable_and_resumes(tmp_path):
     out = tmp_path / "session"
     env = {**os.environ, "PYTHONPATH": os.getcwd()}
     p = subprocess.Popen([sys.executable, "-c", RECORD, str(out)], env=env)
     deadline = time.time() + 120
-    while time.time() < deadline and len(list((out / "parts").glob("step_*.parquet"))) < 4:
+    # wait on the manifest, not on the part files: a part is written before the manifest
+    # names it, so a kill between the two leaves one more part than recorded steps
+    while time.time() < deadline and _recorded_steps(out) < 4:
         time.sleep(0.05)
     p.send_signal(signal.SIGKILL)
     p.wait()
@@ -39,6 +49,14 @@ def test_killed_run_leaves_completed_steps_readable_and_resumes(tmp_path):
         pytest.skip("the recording finished before it could be killed")
     done = len(manifest["steps"])
     assert done >= 4
+    partial = load_session(out, require_complete=False)
+    assert len(partial.steps) == done and partial.samples["step"].max() == done - 1
+    # a kill between writing a step's part and naming it in the manifest leaves an orphan
+    # part for the next step; loading ignores it, resuming records that step again
+    parts = out / "parts"
+    orphan = parts / f"step_{done:05d}.parquet"
+    orphan.unlink(missing_ok=True)
+    shutil.copy(parts / f"step_{done - 1:05d}.parquet", orphan)
     partial = load_session(out, require_complete=False)
     assert len(partial.steps) == done and partial.samples["step"].max() == done - 1
     from workbench.jobs import resume_procedure
