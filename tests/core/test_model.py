@@ -1,5 +1,3 @@
-import time
-
 import numpy as np
 import pytest
 
@@ -38,14 +36,6 @@ def test_definition_of_terms():
     th = ThermalModel(20.0, bias_poly=np.array([[0, 1.0], [0, 0], [0, 0]]))
     mt = TriadModel(thermal=th)
     assert np.allclose(mt.apply(np.zeros((1, 3)), temperature_c=30.0), [[10.0, 0, 0]])
-
-
-def test_compensation_is_vectorised_fast():
-    m = TriadModel(bias=[0.1, 0.2, 0.3], scale_misalignment=np.full((3, 3), 1e-3), nonlinearity=[1e-4, 0, 0])
-    x = np.random.default_rng(0).normal(size=(1_000_000, 3))
-    t0 = time.perf_counter()
-    m.compensate(x)
-    assert time.perf_counter() - t0 < 2.0  # "well under a second" on an idle core; margin for shared CI
 
 
 @pytest.mark.parametrize("kwargs,field", [
