@@ -2,16 +2,19 @@
 
 from __future__ import annotations
 
+import importlib.util
 from pathlib import Path
 
 import pytest
 import yaml
 
 from workbench.drivers.hil import HilLab, free_port
+from workbench.drivers.turntable_visa import GPIB_BACKENDS
 from workbench.rigconfig import RIGS_DIR, load_rig_config
 
 FS = 50.0  # Hz: low sample rate keeps the loopback runs light
 SPEED = 20.0  # simulated seconds per wall-clock second
+GPIB_BACKEND = any(importlib.util.find_spec(m) for m in GPIB_BACKENDS)  # linux-gpib or gpib-ctypes installed
 
 
 def hil_yaml(tmp_path: Path, base: str = "hil", **changes) -> Path:

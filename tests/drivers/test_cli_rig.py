@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import json
 
-from tests.drivers.conftest import hil_yaml
+import pytest
+
+from tests.drivers.conftest import GPIB_BACKEND, hil_yaml
 from workbench.cli import main
 
 
@@ -45,3 +47,13 @@ def test_run_multiposition_on_the_loopback_rig(tmp_path, start_lab, capsys):
     manifest = json.loads((out / "session" / "session.json").read_text())
     assert manifest["complete"] and manifest["rig"] == "hil-acutrol-espec" and len(manifest["steps"]) == 6
     assert (out / "calibration.json").exists()
+
+
+@pytest.mark.skipif(GPIB_BACKEND, reason="a GPIB backend is installed: the missing-backend error cannot occur")
+def test_rig_check_gpib_resource_without_a_gpib_backend(tmp_path, capsys):
+    path = hil_yaml(tmp_path, table_controller={"resource": "GPIB0::1::INSTR"})
+    assert main(["rig", "check", str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == ("error: rig hil-acutrol-espec: turntable (GPIB0::1::INSTR): cannot open: GPIB resource "
+                   "'GPIB0::1::INSTR' needs a GPIB backend for pyvisa-py and none is installed (install linux-gpib "
+                   "or gpib-ctypes)")

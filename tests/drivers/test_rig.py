@@ -7,6 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+import yaml
 
 import procedures.multiposition as mp
 from tests.drivers.conftest import FS, hil_yaml
@@ -15,9 +16,9 @@ from workbench.drivers.rig import open_real_rig
 from workbench.errors import RigError, RigLimitError
 from workbench.grades import draw_unit, load_spec
 from workbench.jobs import open_rig, record_procedure, resume_procedure
-from workbench.rigconfig import load_rig_config
+from workbench.rigconfig import RIGS_DIR, load_rig_config
 from workbench.runner import PARTS, read_parts, record, start
-from workbench.sequence import Hold, Rotate, Sequence
+from workbench.sequence import Hold, Index, Rotate, Sequence
 from workbench.session import load_session
 
 SPEC = load_spec("industrial_mems")
@@ -57,6 +58,7 @@ def test_identify_moves_nothing(hil, closing):
     rig = closing(open_real_rig(load_rig_config(path)))
     info = rig.identify()
     assert info["table"].startswith("HIL") and info["interlock"] == "clear"
+    assert info["position_moves"] == "rate and acceleration limit sent"
     assert info["air_c"] == pytest.approx(23.0, abs=0.01)
     assert info["table_angle_deg"] == 0.0 and lab.sim.state.table_rate == 0.0
 
@@ -210,3 +212,102 @@ def test_soak_ramp_and_rotation_through_the_drivers(tmp_path, start_lab, closing
     # bias and scale-factor errors of this grade stay below 0.1 m/s^2)
     h = session.samples[at == hold.index]
     assert h["table_rate"].abs().max() == 0.0 and h["ax"].mean() == pytest.approx(9.80, abs=0.1)
+
+
+INDEX = np.radians(90.0)  # rad: a quarter turn, no ambiguity in the direction of an absolute move
+
+
+def _index_run(lab, path, truth, rate_dps: float):
+    """Hold, then Index by INDEX at ``rate_dps`` (z-down, so gz is the table rate) through the real drivers."""
+    seq = Sequence("index", [Hold("z-down", 0.0, 1.0), Index(INDEX, 1.0, np.radians(rate_dps))])
+    rig = open_real_rig(load_rig_config(path))
+    try:
+        session = record(start(seq, rig, Unit(truth.serial, truth.model), "index", None), rig)
+    finally:
+        rig.close()
+    step = next(s for s in session.steps if s.kind == "index")
+    df = session.samples[session.samples["step"] == step.index]
+    # gyro output -> true body rate with the unit's own truth model (bias, scale factor, thermal terms)
+    gyro = truth.gyro.compensate(df[["gx", "gy", "gz"]].to_numpy(), df[["ax", "ay", "az"]].to_numpy(),
+                                 df["temp"].to_numpy())
+    return step, df, gyro[:, 2]
+
+
+def _gyro_plateau_rate(wz: np.ndarray, rate: float, expected: float) -> float:
+    """Median |wz| (rad/s) over the samples above half ``rate``, checked against the table rate ``expected``.
+
+    The unit's truth model is removed, so on the plateau |wz| = table rate - Earth rate 9.8 °/h (z down, 40.8° N).
+    ARW 0.2 °/sqrt(h) = 0.024 °/s per sample at 50 Hz: the median of n samples has sigma 1.25 * 0.024 / sqrt(n)
+    °/s; bias instability 8 °/h = 0.0022 °/s; the trapezoid's ramps (500 °/s^2) last < 2 samples. 4 sigma.
+    """
+    plateau = np.abs(wz) > 0.5 * rate
+    median = float(np.median(np.abs(wz[plateau])))
+    earth_z = np.radians(15.041 / 3600) * np.sin(np.radians(40.8))
+    tol = 4 * np.radians(np.hypot(1.25 * 0.024 / np.sqrt(plateau.sum()), 0.0022))
+    assert abs(median - (expected - earth_z)) < tol, (np.degrees(median), plateau.sum())
+    return median
+
+
+@pytest.mark.parametrize("base", ["hil", "hil_modbus"])  # POS:RATE + POS:ACC before POS:COMM | MOVE {angle},{rate}
+def test_index_runs_at_the_sequence_index_rate(base, tmp_path, start_lab):
+    path = hil_yaml(tmp_path, base)
+    truth = replace(draw_unit(SPEC, 2), sample_rate_hz=FS)
+    lab = start_lab(path, truth=truth, seed=3)
+    rate = np.radians(15.0)
+    step, df, wz = _index_run(lab, path, truth, 15.0)
+    # the move carried the index rate (and, on hil.yaml, the acceleration limit 500 °/s^2 of turntable.max_accel_dps2)
+    moves = [(key, f) for _, key, f in lab.table_log if key.startswith("position")]
+    index_move = [("position_rate", {"rate_dps": "15.00000"}), ("position_accel", {"accel_dps2": "500.00000"}),
+                  ("position", {"angle_deg": "90.00000"})] if base == "hil" else \
+        [("position", {"angle_deg": "90.00000", "rate_dps": "15.00000"})]
+    assert any(moves[k:k + len(index_move)] == index_move for k in range(len(moves))), moves
+    assert step.extra["index_rate_sent"] is True
+    # Read-back: the simulator fits the trapezoid to whole samples (n = ceil((90°/15 + 15/500) s * 50 Hz) = 302),
+    # which moves its plateau by less than one sample in n: |peak - rate| < rate / n.
+    n = np.ceil((INDEX / rate + rate / np.radians(500.0)) * FS)
+    # (polled once per poll_s = 0.5 s of samples: the 6 s move is seen on its plateau)
+    peak = np.abs(df["table_rate"].to_numpy()).max()
+    assert abs(peak - rate) < rate / n, np.degrees(peak)
+    # The motion itself, from the unit's gyro
+    gyro_rate = _gyro_plateau_rate(wz, rate, peak)
+    print(f"{base}: index 90° at 15 °/s: read-back peak {np.degrees(peak):.5f} °/s, gyro plateau "
+          f"{np.degrees(gyro_rate):.4f} °/s")
+
+
+def test_index_rate_without_a_rate_command_falls_back_with_a_warning(tmp_path, start_lab, caplog):
+    commands = {**yaml.safe_load((RIGS_DIR / "hil.yaml").read_text())["table_controller"]["commands"],
+                "position_rate": None}
+    path = hil_yaml(tmp_path, table_controller={"commands": commands})
+    truth = replace(draw_unit(SPEC, 2), sample_rate_hz=FS)
+    lab = start_lab(path, truth=truth, seed=3)
+    with caplog.at_level(logging.WARNING, "workbench.rig"):
+        step, df, wz = _index_run(lab, path, truth, 15.0)
+    assert f"{path}: no 'position_rate' in table_controller.commands (nor {{rate_dps}} in 'position'): index steps " \
+           "run at the controller's own slew rate, not at 15 °/s" in caplog.text
+    assert step.extra["index_rate_sent"] is False
+    assert not any(key == "position_rate" for _, key, _ in lab.table_log)
+    # the simulated controller's own position-mode rate, 60 °/s (a 90° move fits it in whole samples exactly);
+    # the 1.6 s move falls between two read-back polls of the fast loopback, so the gyro shows it
+    gyro_rate = _gyro_plateau_rate(wz, np.radians(60.0), np.radians(60.0))
+    print(f"fallback: index 90° asked at 15 °/s ran at {np.degrees(gyro_rate):.4f} °/s (gyro plateau)")
+
+
+def test_index_rate_and_position_commands_checked_before_anything_moves(hil, closing):
+    lab, path, truth = hil
+    cfg = load_rig_config(path)
+    unit = Unit(truth.serial, truth.model)
+    too_fast = Sequence("fast", [Hold("z-down", 0.0, 1.0), Index(np.pi, 1.0, np.radians(1500.0))])
+    with pytest.raises(RigLimitError, match=r"step 1 \(index\): table rate 1500\.0 °/s exceeds the limit 1000\.0"):
+        start(too_fast, closing(open_real_rig(cfg)), unit, "fast", None)
+    seq = Sequence("ok", [Hold("z-down", 0.0, 1.0), Index(np.pi, 1.0)])
+    tc = cfg.options["table_controller"]
+    bad = {**tc, "commands": {**tc["commands"], "position_rate": "POS:RATE {speed:.3f}"}}
+    with pytest.raises(RigError, match=r"table_controller.commands.position_rate 'POS:RATE \{speed:\.3f\}' cannot be "
+                                       r"formatted \(KeyError: 'speed'; fields given: \{rate_dps\}\)"):
+        start(seq, closing(open_real_rig(replace(cfg, options={**cfg.options, "table_controller": bad}))), unit, "ok",
+              None)
+    fast_moves = {**tc, "positioning_rate_dps": 2000.0}
+    with pytest.raises(RigLimitError, match=r"positioning_rate_dps 2000 °/s outside 0\.\.1000 °/s"):
+        start(seq, closing(open_real_rig(replace(cfg, options={**cfg.options, "table_controller": fast_moves}))),
+              unit, "ok", None)
+    assert not [key for _, key, _ in lab.table_log if key != "mount"]  # nothing moved

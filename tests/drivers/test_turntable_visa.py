@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tests.drivers.conftest import hil_yaml
+from tests.drivers.conftest import GPIB_BACKEND, hil_yaml
 from workbench.drivers.hil import free_port
 from workbench.drivers.turntable_visa import VisaTurntable
 from workbench.errors import RigError
@@ -101,3 +101,26 @@ def test_address_that_does_not_answer(closing):
 def test_unknown_command_key():
     with pytest.raises(RigError, match=r"unknown command\(s\) spin_up in table_controller.commands"):
         VisaTurntable({"resource": "TCPIP0::127.0.0.1::1::SOCKET", "commands": {"spin_up": "X"}})
+
+
+def test_position_limits_refused_and_templates_checked(table):
+    lab, t = table
+    with pytest.raises(RigError, match=r"'POS:RATE 2000\.00000' refused by the controller: '-222,Data out of range'"):
+        t.goto(np.radians(45.0), rate=np.radians(2000.0))  # above the controller's 1000 °/s
+    t.commands.update(position="MOVE {angle_deg:.4f},{rate_dps:.4f}", position_rate=None, position_accel=None)
+    assert t.sends_position_rate and not t.sends_position_accel
+    with pytest.raises(RigError, match=r"commands.position 'MOVE \{angle_deg:\.4f\},\{rate_dps:\.4f\}' cannot be "
+                                       r"formatted \(KeyError: 'rate_dps'; fields given: \{angle_deg\}\)"):
+        t.goto(np.radians(45.0))
+    assert [k for _, k, _ in lab.table_log] == ["position_rate"]  # the refused limit only: nothing moved
+    assert lab.sim.state.table_angle == 0.0
+
+
+@pytest.mark.skipif(GPIB_BACKEND, reason="a GPIB backend is installed: the missing-backend error cannot occur")
+def test_gpib_resource_without_a_gpib_backend():
+    t = VisaTurntable({"resource": "GPIB0::7::INSTR"}, "rig lab: turntable")
+    with pytest.raises(RigError) as err:
+        t.open()
+    assert str(err.value) == ("rig lab: turntable (GPIB0::7::INSTR): cannot open: GPIB resource 'GPIB0::7::INSTR' "
+                              "needs a GPIB backend for pyvisa-py and none is installed (install linux-gpib or "
+                              "gpib-ctypes)")

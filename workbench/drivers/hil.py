@@ -3,7 +3,12 @@
 :class:`HilLab` serves, on 127.0.0.1, what a rig configuration (``driver: real``) expects:
 
 - the turntable controller: a TCP line server answering the configured ``table_controller``
-  command set (a PyVISA ``TCPIP0::127.0.0.1::PORT::SOCKET`` resource talks to it),
+  command set (a PyVISA ``TCPIP0::127.0.0.1::PORT::SOCKET`` resource talks to it); position
+  moves follow the rest-to-rest profile of the simulated rig at the position-mode rate and
+  acceleration limits last commanded (``position_rate`` / ``position_accel``, or the
+  ``{rate_dps}`` / ``{accel_dps2}`` fields of ``position``; default 60 °/s capped at
+  ``turntable.max_rate_dps``, and ``turntable.max_accel_dps2``), and every setting command is
+  logged with the simulated time it arrived (:attr:`HilLab.table_log`),
 - the chamber controller: a TCP line server for the ASCII command set, or a pymodbus server
   with the configured register map,
 - the IMU stream: frames in the configured format (TCP clients, or UDP datagrams to the
@@ -34,7 +39,7 @@ from dataclasses import replace
 import numpy as np
 
 from workbench.drivers.imu_stream import SIGNALS, FrameFormat
-from workbench.drivers.turntable_visa import DEFAULT_COMMANDS
+from workbench.drivers.turntable_visa import DEFAULT_COMMANDS, DEFAULT_POSITIONING_RATE
 from workbench.errors import RigError
 from workbench.rigconfig import RigConfig, rig_config_from_dict
 from workbench.sim.rig import SimRig, move_profile, ramp_profile, wrap_pi
@@ -174,6 +179,9 @@ class HilLab:
         self.faults: dict[str, str | None] = {"table": None, "chamber": None, "stream": None}
         self._queue = np.zeros(0)  # pending table-rate profile, rad/s per sample
         self._hold = 0.0  # rate after the profile
+        self._pos_rate = min(cfg.turntable.max_rate, DEFAULT_POSITIONING_RATE)  # position-mode limits, rad/s
+        self._pos_accel = cfg.turntable.max_accel  # rad/s^2
+        self.table_log: list[tuple[float, str, dict]] = []  # (simulated time s, command key, fields as sent)
         self._new_error = True
         self._errors: list[str] = []
         self._counter_skip = 0
@@ -294,8 +302,7 @@ class HilLab:
         prev = np.concatenate([[r0], decel[:-1]])
         after = st.table_angle + float(np.sum(0.5 * (prev + decel)) / self.fs)
         delta = wrap_pi(target_angle - after)
-        move = move_profile(delta, min(tt.max_rate, np.radians(60.0)), tt.max_accel, self.fs) \
-            if abs(delta) > 1e-12 else np.zeros(0)
+        move = move_profile(delta, self._pos_rate, self._pos_accel, self.fs) if abs(delta) > 1e-12 else np.zeros(0)
         self._queue, self._hold = np.concatenate([decel, move]), 0.0
         self._new_error = True
 
@@ -409,12 +416,17 @@ class HilLab:
             return "1" if self.faults["table"] == "interlock" else "0"
         if key == "error":
             return self._errors.pop(0) if self._errors else "0,No error"
+        self.table_log.append((st.sample / self.fs, key, dict(f)))
         if key == "stop":
             self._plan(None, 0.0)
-        elif key == "position":
-            if refuse:
+        elif key in ("position", "position_rate", "position_accel"):
+            rate = np.radians(float(f["rate_dps"])) if "rate_dps" in f else self._pos_rate
+            accel = np.radians(float(f["accel_dps2"])) if "accel_dps2" in f else self._pos_accel
+            if refuse or not (0 < rate <= tt.max_rate * (1 + 1e-6) and 0 < accel <= tt.max_accel * (1 + 1e-6)):
                 self._errors.append("-222,Data out of range")
-            else:
+                return None
+            self._pos_rate, self._pos_accel = rate, accel
+            if key == "position":
                 self._plan(np.radians(float(f["angle_deg"])), 0.0)
         elif key == "rate":
             rate = np.radians(float(f["rate_dps"]))

@@ -8,7 +8,10 @@
 2. remounts the unit (``fixture.mode``: ``command`` = a motorised fixture or the HIL simulator,
    ``prompt`` = asks the operator, ``fixed`` = refuses plans that need a remount),
 3. moves the table (position mode, or rate mode for rate / carousel steps) and waits until the
-   read-back angle and rate are within tolerance, then ``turntable.settle_s`` more,
+   read-back angle and rate are within tolerance, then ``turntable.settle_s`` more; position
+   moves carry their rate limit (an index step's ``index_rate``, else
+   ``table_controller.positioning_rate_dps``) and ``turntable.max_accel_dps2`` where the command
+   set can send them (``position_rate`` / ``position_accel``, see ``turntable_visa``),
 4. records the stream: transition samples labelled ``step = -1``, then the step's samples,
    each with the table's read-back angle and rate (read once per ``poll_s`` of samples and
    extrapolated to each sample with the read-back rate).
@@ -29,7 +32,7 @@ import numpy as np
 import pandas as pd
 
 from workbench.drivers.imu_stream import Block, ImuStream
-from workbench.drivers.turntable_visa import VisaTurntable
+from workbench.drivers.turntable_visa import DEFAULT_POSITIONING_RATE, VisaTurntable
 from workbench.errors import RigError, RigLimitError, WorkbenchError
 from workbench.rigconfig import RigConfig, check_plan
 from workbench.sequence import PlannedStep, mount_label
@@ -104,6 +107,8 @@ class RealRig:
         self.angle_tol = np.radians(float(tc.get("angle_tolerance_deg", 0.005)))
         self.rate_tol = np.radians(float(tc.get("rate_tolerance_dps", 0.01)))
         self.settle_timeout_s = float(tc.get("settle_timeout_s", 120.0))
+        default_dps = np.degrees(min(cfg.turntable.max_rate, DEFAULT_POSITIONING_RATE))
+        self.positioning_rate = np.radians(float(tc.get("positioning_rate_dps", default_dps)))
         self.chunk = max(1, int(round(float(tc.get("poll_s", 0.5)) * self.fs)))
         ch = cfg.options.get("chamber_controller") or {}
         self.air_tol_c = float(ch.get("air_tolerance_c", 0.5))
@@ -118,12 +123,37 @@ class RealRig:
         """RigLimitError if a step is outside the limits, needs a chamber that is not configured,
         or needs a remount on a ``fixed`` fixture."""
         check_plan(plan, self.config)
+        self._check_position_moves(plan)
         for i, p in enumerate(plan):
             where = f"rig {self.name}: step {i} ({p.kind}{', ' + p.label if p.label else ''})"
             if self.chamber is None and p.temperature_c is not None:
                 raise RigLimitError(f"{where}: needs a chamber setpoint but no chamber_controller is configured")
             if self.fixture_mode == "fixed" and not np.allclose(p.mount, plan[0].mount):
                 raise RigLimitError(f"{where}: needs a remount to {mount_label(p.mount)} but fixture.mode is 'fixed'")
+
+    def _check_position_moves(self, plan: list[PlannedStep]) -> None:
+        """Positioning rate within the limit, position templates that format, and a WARNING when the
+        index rates of the plan cannot be sent (the controller's own slew rate is used)."""
+        source = self.config.path or f"rig {self.name}"
+        max_rate, accel = self.config.turntable.max_rate, self.config.turntable.max_accel
+        if not 0.0 < self.positioning_rate <= max_rate * (1 + 1e-9):
+            raise RigLimitError(f"{source}: table_controller.positioning_rate_dps "
+                                f"{np.degrees(self.positioning_rate):g} °/s outside 0..{np.degrees(max_rate):g} °/s "
+                                f"(turntable.max_rate_dps)")
+        rates = sorted({round(abs(p.table_rate), 12) for p in plan if p.kind == "index"})
+        for rate in [self.positioning_rate, *rates]:
+            self.table.position_commands(0.0, rate, accel)  # a template that does not format fails before moving
+        if rates and not self.table.sends_position_rate:
+            log.warning("%s: no 'position_rate' in table_controller.commands (nor {rate_dps} in 'position'): index "
+                        "steps run at the controller's own slew rate, not at %s °/s", source,
+                        ", ".join(f"{np.degrees(r):g}" for r in rates))
+
+    def _position_limits(self) -> str:
+        """What a position move carries (for ``rig check``): its rate and acceleration limits, or neither."""
+        sent = [name for name, ok in (("rate", self.table.sends_position_rate),
+                                      ("acceleration", self.table.sends_position_accel)) if ok]
+        return f"{' and '.join(sent)} limit sent" if sent else \
+            "controller's own slew rate (no 'position_rate' command: index rates not sent)"
 
     def identify(self) -> dict:
         """Identity, table position and rate, interlock, chamber temperature, a few stream frames.
@@ -133,7 +163,8 @@ class RealRig:
         out = {"driver": self.driver, "name": self.name, "table": self.table.identify(),
                "table_angle_deg": float(np.degrees(self.table.angle())),
                "table_rate_dps": float(np.degrees(self.table.rate())),
-               "interlock": self.table.interlock() or "clear"}
+               "interlock": self.table.interlock() or "clear",
+               "position_moves": self._position_limits()}
         if self.chamber is not None:
             out.update(chamber=self.chamber.identify(), air_c=self.chamber.temperature())
         block = self.stream.take(max(2, int(self.fs // 2)))
@@ -189,14 +220,17 @@ class RealRig:
             self.table.spin(p.table_rate)
             parts.append(self._wait_settled(None, p.table_rate, -1))
         else:
-            self.table.goto(p.table_angle)
+            self.table.goto(p.table_angle, self.positioning_rate, self.config.turntable.max_accel)
             parts.append(self._wait_settled(p.table_angle, 0.0, -1))
         parts.append(self._record(int(round(self.config.turntable.settle_s * self.fs)), -1))
         start_angle = self.table.angle()
         t_start = self.stream.next_sample / self.fs
+        extra = dict(p.extra)
         if p.kind == "index":
-            self.table.goto(p.table_angle + p.extra["index_angle"])
-            parts.append(self._wait_settled(p.table_angle + p.extra["index_angle"], 0.0, index))
+            target = p.table_angle + p.extra["index_angle"]
+            self.table.goto(target, abs(p.table_rate), self.config.turntable.max_accel)
+            parts.append(self._wait_settled(target, 0.0, index))
+            extra["index_rate_sent"] = self.table.sends_position_rate  # False: the controller's own slew rate
         elif p.kind == "soak":
             parts.append(self._soak(p, index))
         elif p.kind == "ramp":
@@ -209,7 +243,7 @@ class RealRig:
         counts = self.stream.reset_counts()
         record = StepRecord(index, p.kind, t_start, t_end - 0.5 / self.fs, np.asarray(p.mount), float(start_angle),
                             float(p.table_rate), p.temperature_c, p.label,
-                            {**dict(p.extra), "dropped_frames": counts["dropped_frames"],
+                            {**extra, "dropped_frames": counts["dropped_frames"],
                              "corrupt_frames": counts["corrupt_frames"]})
         return samples, record
 

@@ -3,9 +3,18 @@
 One driver serves SCPI-style motion controllers (ACUTROL-like over GPIB or Ethernet, Ideal
 Aerosmith-style ASCII over RS-232 as a VISA ``ASRL`` resource): the configuration's
 ``table_controller.commands`` gives each command as a Python format string with the fields
-``{angle_deg}``, ``{rate_dps}`` and ``{mount}`` (nine comma-separated numbers, row-major).
+``{angle_deg}``, ``{rate_dps}``, ``{accel_dps2}`` and ``{mount}`` (nine comma-separated
+numbers, row-major).
 The pure-Python ``pyvisa-py`` backend (``visa_library: "@py"``) needs no vendor VISA; a
-``TCPIP0::host::port::SOCKET`` resource talks to a plain TCP server.
+``TCPIP0::host::port::SOCKET`` resource talks to a plain TCP server. A ``GPIB...`` resource
+needs a GPIB backend for pyvisa-py (linux-gpib or gpib-ctypes); without one, :meth:`open`
+says so in one line.
+
+A position move carries its rate (and acceleration) limit when the command set has a way to
+send it: the ``position_rate`` / ``position_accel`` commands (position-mode limits, sent
+before the ``position`` command), or ``{rate_dps}`` / ``{accel_dps2}`` fields in the
+``position`` command itself (``"MOVE {angle_deg:.4f},{rate_dps:.4f}"``);
+:attr:`VisaTurntable.sends_position_rate` tells which.
 
 Every setting command is followed by the ``error`` query (when configured): a reply not
 matching ``replies.no_error`` is a refused setpoint. Any reply matching
@@ -16,8 +25,10 @@ resource and the command. SI at the interface (rad, rad/s), degrees on the wire.
 
 from __future__ import annotations
 
+import importlib.util
 import re
 import socket
+import string
 from collections.abc import Mapping
 
 import numpy as np
@@ -30,6 +41,8 @@ from workbench.errors import RigError
 DEFAULT_COMMANDS = {
     "identify": "*IDN?",
     "position": "POS:COMM {angle_deg:.5f}",  # position mode: go to an absolute angle
+    "position_rate": None,  # position-mode rate limit, sent before `position`: "POS:RATE {rate_dps:.5f}"
+    "position_accel": None,  # position-mode acceleration limit, sent before `position`: "POS:ACC {accel_dps2:.5f}"
     "rate": "RATE:COMM {rate_dps:.5f}",  # rate mode: turn at a constant rate
     "stop": "STOP",  # decelerate to rest and hold
     "read_angle": "POS?",  # reply: degrees
@@ -39,6 +52,8 @@ DEFAULT_COMMANDS = {
     "error": "SYST:ERR?",  # reply matching replies.no_error when the last command was accepted
     "mount": None,  # motorised fixture / HIL only: "FIXT:MOUNT {mount}"
 }
+DEFAULT_POSITIONING_RATE = np.radians(60.0)  # rad/s: moves between steps, as on the simulated rig (sim/rig.py)
+GPIB_BACKENDS = ("gpib", "gpib_ctypes")  # modules pyvisa-py uses for GPIB: linux-gpib, gpib-ctypes
 DEFAULT_REPLIES = {"error_reply": r"^(ERR|ERROR|\?|NAK)", "no_error": r"^\+?0\b", "interlock_clear": r"^0$"}
 
 
@@ -69,8 +84,12 @@ class VisaTurntable:
 
     # -- link -------------------------------------------------------------------------
     def open(self) -> None:
-        """Open the VISA resource; RigError if it does not answer."""
+        """Open the VISA resource; RigError if it does not answer or pyvisa-py has no backend for it."""
         self.close()
+        if (self.resource.upper().startswith("GPIB") and self.library == "@py"
+                and not any(importlib.util.find_spec(m) for m in GPIB_BACKENDS)):
+            raise RigError(f"{self.where}: cannot open: GPIB resource {self.resource!r} needs a GPIB backend for "
+                           f"pyvisa-py and none is installed (install linux-gpib or gpib-ctypes)")
         try:
             self._rm = pyvisa.ResourceManager(self.library)
             self._inst = self._rm.open_resource(self.resource, timeout=int(self.timeout_s * 1000),
@@ -97,7 +116,39 @@ class VisaTurntable:
         template = self.commands.get(key)
         if not template:
             raise RigError(f"{self.where}: no '{key}' command in table_controller.commands")
-        return template.format(**fields)
+        try:
+            return template.format(**{k: v for k, v in fields.items() if v is not None})
+        except (KeyError, IndexError, ValueError, TypeError) as exc:
+            given = ", ".join(f"{{{k}}}" for k, v in fields.items() if v is not None) or "none"
+            raise RigError(f"{self.where}: table_controller.commands.{key} {template!r} cannot be formatted "
+                           f"({type(exc).__name__}: {exc}; fields given: {given})") from None
+
+    def _uses(self, key: str, field: str) -> bool:
+        """Whether the configured command ``key`` has the format field ``field``."""
+        template = self.commands.get(key) or ""
+        return any(name == field for _, name, _, _ in string.Formatter().parse(template) if name is not None)
+
+    @property
+    def sends_position_rate(self) -> bool:
+        """Whether a position move can carry a rate limit (``position_rate`` or ``{rate_dps}`` in ``position``)."""
+        return bool(self.commands.get("position_rate")) or self._uses("position", "rate_dps")
+
+    @property
+    def sends_position_accel(self) -> bool:
+        """Whether a position move can carry an acceleration limit (``position_accel`` or ``{accel_dps2}``)."""
+        return bool(self.commands.get("position_accel")) or self._uses("position", "accel_dps2")
+
+    def position_commands(self, angle: float, rate: float | None = None, accel: float | None = None) -> list[str]:
+        """The command strings of :meth:`goto` in the order they are sent (checks the templates, sends nothing)."""
+        f = {"angle_deg": float(np.degrees(np.mod(angle, 2 * np.pi))),
+             "rate_dps": None if rate is None else float(np.degrees(abs(rate))),
+             "accel_dps2": None if accel is None else float(np.degrees(abs(accel)))}
+        out = []
+        if f["rate_dps"] is not None and self.commands.get("position_rate"):
+            out.append(self._command("position_rate", rate_dps=f["rate_dps"]))
+        if f["accel_dps2"] is not None and self.commands.get("position_accel"):
+            out.append(self._command("position_accel", accel_dps2=f["accel_dps2"]))
+        return out + [self._command("position", **f)]
 
     def _io(self, command: str, reply: bool) -> str:
         tries, reopened = 0, False
@@ -143,7 +194,10 @@ class VisaTurntable:
         return self._io(self._command(key, **fields), reply=True)
 
     def _set(self, key: str, **fields) -> None:
-        command = self._command(key, **fields)
+        self._send(self._command(key, **fields))
+
+    def _send(self, command: str) -> None:
+        """Write a setting command and check the controller accepted it (``error`` query)."""
         self._io(command, reply=False)
         if self.commands.get("error"):
             answer = self.query("error")
@@ -165,9 +219,15 @@ class VisaTurntable:
         cmd = self._command("read_rate")
         return float(np.radians(reply_number(self.where, cmd, self.query("read_rate"))))
 
-    def goto(self, angle: float) -> None:
-        """Position mode: move to the absolute angle ``angle`` rad."""
-        self._set("position", angle_deg=float(np.degrees(np.mod(angle, 2 * np.pi))))
+    def goto(self, angle: float, rate: float | None = None, accel: float | None = None) -> None:
+        """Position mode: move to the absolute angle ``angle`` rad.
+
+        ``rate`` (rad/s, magnitude) and ``accel`` (rad/s^2) limit the move where the command set
+        can send them (:attr:`sends_position_rate`, :attr:`sends_position_accel`); otherwise the
+        controller moves at its own slew rate. A ``position`` command with ``{rate_dps}`` needs ``rate``.
+        """
+        for command in self.position_commands(angle, rate, accel):
+            self._send(command)
 
     def spin(self, rate: float) -> None:
         """Rate mode: turn at ``rate`` rad/s."""
