@@ -10,8 +10,10 @@ and on the samples compensated with the set, re-initialised at each mount (a rem
 unit by hand). The process and accelerometer measurement noise come from the set's noise block
 (the same for both runs); the errors left in the samples from the set (its coefficients for
 the raw run, their sigmas for the calibrated one): gyro scale/misalignment (an apparent bias that
-moves with the rate), accelerometer and magnetometer bias and ``M`` (systematic tilt and heading
-measurement errors); the magnetometer white noise from the samples; the declination from
+moves with the rate), accelerometer and magnetometer bias and ``M`` per element (constant body-frame
+errors: coloured tilt and heading measurement noise of the Kalman filter, see
+:func:`workbench.nav.ahrs.kalman`);
+the magnetometer white noise from the samples; the declination from
 ``declination_deg`` or the rig configuration. The table is the truth (``Session.attitude`` with
 the encoder angle), evaluated at the filters' update epochs inside the steps.
 
@@ -94,23 +96,21 @@ def _convergence(t: np.ndarray, err: np.ndarray, heading_tol: float, tilt_tol: f
     return float(t[0 if len(bad) == 0 else bad[-1] + 1] - t[0])
 
 
-def _residual(cal: CalibrationSet, triad: str, calibrated: bool, field: float) -> tuple[float, float]:
-    """RMS per axis of the bias and of ``M`` left in a triad's samples: (SI unit of the triad, 1).
+def _residual(cal: CalibrationSet, triad: str, calibrated: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Per-element 1-sigma of the bias (3,) (SI unit of the triad) and of ``M`` (3, 3) left in a triad's samples.
 
-    Raw: the set's own coefficients (what compensation would remove); calibrated: their 1-sigma
-    (the raw figure where the set did not observe an element). ``field`` is the input magnitude
-    (g or the field norm) that ``M`` scales into an error.
+    Raw: the magnitude of the set's own coefficients (what compensation would remove);
+    calibrated: their 1-sigma (the raw figure where the set did not observe an element).
     """
     tc = cal.triads[triad]
     out = []
     for name in ("bias", "scale_misalignment"):
-        raw = getattr(tc.model, name)
-        val = raw
+        val = np.abs(np.asarray(getattr(tc.model, name), float))
         if calibrated:
             sig = tc.sigma_of(name)
-            val = np.where(np.isfinite(sig), sig, raw)
-        out.append(float(np.sqrt(np.mean(np.asarray(val) ** 2))))
-    return float(np.hypot(out[0], out[1] * field)), out[1]
+            val = np.where(np.isfinite(sig), sig, val)
+        out.append(val)
+    return out[0], out[1]
 
 
 def _run_filter(name: str, session: Session, samples, rows, noise, cfg, o, scale_sigma: float) -> dict:
@@ -161,17 +161,16 @@ def analyze(session: Session, calibration: CalibrationSet | None = None, **optio
                            tau_tilt_s=float(o["tau_tilt_s"]), tau_heading_s=float(o["tau_heading_s"]))
     cal_all = compensate(raw_all, calibration, TRIADS)
     blocks, payload = {}, {}
-    field = calibration.triads["mag"].field_norm_ut or float(np.median(np.linalg.norm(raw_all.mag, axis=1)))
     for mode, data in (("raw", raw_all), ("calibrated", cal_all)):
         calibrated = mode == "calibrated"
-        cfg = replace(base, accel_error=_residual(calibration, "accel", calibrated, session.site.gravity)[0],
-                      mag_error_ut=_residual(calibration, "mag", calibrated, field)[0])
+        (ab, am), (mb, mm) = (_residual(calibration, tr, calibrated) for tr in ("accel", "mag"))
+        cfg = replace(base, accel_bias_error=ab, accel_scale_error=am, mag_bias_error_ut=mb, mag_scale_error=mm)
+        gyro_scale = float(np.sqrt(np.mean(_residual(calibration, "gyro", calibrated)[1] ** 2)))
         per_filter = {name: [] for name in _FILTERS}
         for rows in mount_segments(session):
             seg = data.slice(int(rows[0]), int(rows[-1]) + 1)
             for name in _FILTERS:
-                per_filter[name].append(_run_filter(name, session, seg, rows, noise, cfg, o,
-                                                    _residual(calibration, "gyro", calibrated, 0.0)[1]))
+                per_filter[name].append(_run_filter(name, session, seg, rows, noise, cfg, o, gyro_scale))
         block = _metrics(per_filter["kalman"])
         block["complementary"] = _metrics(per_filter["complementary"])
         blocks[mode] = block
@@ -187,9 +186,11 @@ def _summary(blocks: dict) -> list[str]:
     lines = []
     for mode, b in blocks.items():
         for name, m in (("kalman", b), ("complementary", b["complementary"])):
+            err, sig = np.array(m["gyro_bias_error"]), np.array(m["gyro_bias_sigma"], float)
+            z = "" if not np.all(np.isfinite(sig)) else " (" + ", ".join(f"{v:+.1f}" for v in err / sig) + " sigma)"
             lines.append(f"{mode} {name}: RMS roll {m['roll_error_deg']:.3f}°, pitch {m['pitch_error_deg']:.3f}°, "
                          f"heading {m['heading_error_deg']:.2f}° (max {m['heading_max_deg']:.2f}°); gyro-bias error "
-                         + ", ".join(f"{units.to_unit(v, 'deg/h'):+.1f}" for v in m["gyro_bias_error"]) + " °/h")
+                         + ", ".join(f"{units.to_unit(v, 'deg/h'):+.1f}" for v in err) + f" °/h{z}")
     return lines
 
 

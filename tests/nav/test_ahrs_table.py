@@ -48,6 +48,23 @@ def test_calibrated_bias_against_the_table(run):
     assert len(proc.figures(res)) == 2
 
 
+def test_industrial_calibrated_bias_within_3_sigma():
+    # Industrial MEMS, one mount: 20 s hold, 60 s at +20 °/s, 90° index, 60 s at -45 °/s, 20 s hold.
+    # The set's residual hard/soft iron (0.1 µT, 0.2 %: a heading error of ~0.3° that turns with
+    # the table), counted as white noise, moved the filter's z gyro bias by 4.6-6.7 sigma on this
+    # sequence (seeds 11-13); modelled as coloured measurement noise, the final bias error against the
+    # table reference is within 3 sigma per axis (99.7 % for a consistent filter, fixed seed). The
+    # sigma is the filter's and the reference's (20 s mean of 0.2 °/sqrt(h) ARW: 2.7 °/h) together.
+    # Attitude: heading < 1° is the requirement; roll/pitch RMS < 0.05° is 5 sigma of the
+    # table's 0.01° fixture error (the accelerometer residual adds 0.05 mg / g = 0.003°).
+    spec = load_spec("industrial_mems")
+    opts = {"mounts": [[-20.0, 15.0]], "rotate_s": 60.0, "dwell_s": 20.0}
+    session, truth = simulate(proc.sequence(spec, **opts), spec, seed=11)
+    cal = proc.analyze(session, calibration=calibration_from_truth(truth), **opts).result["calibrated"]
+    assert np.all(np.abs(cal["gyro_bias_error"]) < 3 * np.array(cal["gyro_bias_sigma"]))
+    assert cal["heading_error_deg"] < 1.0 and cal["roll_error_deg"] < 0.05 and cal["pitch_error_deg"] < 0.05
+
+
 def test_needs_a_magnetometer(run):
     session, truth, cal, _ = run
     with pytest.raises(AnalysisError, match="no mag triad"):

@@ -8,8 +8,11 @@ model and differ only in how they weigh the measurements:
 - :func:`complementary` fixed-gain second-order loops (proportional attitude correction,
   integral gyro-bias correction, critically damped with time constants ``tau_*``);
 - :func:`kalman` an error-state Kalman filter with states ``[dtheta_NED (rad), db_g (rad/s)]``,
-  process noise from the set's noise block (gyro ARW, bias random walk) and measurement noise
-  from the accelerometer VRW and the magnetometer white noise.
+  process noise from the set's noise block (gyro ARW, bias random walk), white measurement noise
+  from the accelerometer VRW and the magnetometer white noise, and coloured measurement noise
+  from the calibration errors left in the accelerometer and magnetometer samples (constant
+  body-frame errors: their tilt and heading errors are correlated in time, not white), carried
+  as three Gauss-Markov states fitted to the covariance the set implies.
 
 Mechanisation: the gyro samples (Earth rate removed, thesis eq. 3.6) are integrated at the full
 rate; the measurements are formed and the corrections applied every ``update_interval_s`` from
@@ -24,6 +27,9 @@ tilt the attitude (paper 004 sec. 4.1.1, 5).
 
 Public: :class:`AhrsConfig`, :class:`AhrsResult`, :func:`kalman`, :func:`complementary`,
 :func:`initial_attitude`, :func:`mag_white_noise`.
+
+References: paper 004 (shared/seeds/004_...) sec. 4.1.1, 5; coloured measurement noise by state
+augmentation: A. Gelb (ed.), Applied Optimal Estimation, MIT Press (1974), ch. 4.
 """
 
 from __future__ import annotations
@@ -47,11 +53,14 @@ class AhrsConfig:
     ``update_interval_s`` measurement/correction period; ``declination`` rad (magnetic north
     east of true north); ``tau_tilt_s``, ``tau_heading_s`` time constants of the complementary
     loops; ``gyro_bias_prior`` 1-sigma rad/s of the Kalman filter's initial bias; the noise
-    floors (rad) are added in quadrature to the measurement noise derived from the sensors
-    (vibration, unmodelled errors); ``accel_error`` (m/s^2) and ``mag_error_ut`` (µT) are the
-    1-sigma systematic errors left in the accelerometer and magnetometer samples (e.g. a
-    calibration's residual): they enter the tilt and heading measurement noise as
-    ``accel_error / |f|`` and ``mag_error_ut / |m_h|``; ``init_s`` data used for the initial attitude.
+    floors (rad) are added in quadrature to the white measurement noise derived from the sensors
+    (vibration, unmodelled errors); ``init_s`` data used for the initial attitude.
+
+    The calibration errors left in the aiding sensors' samples (e.g. a calibration set's
+    1-sigma), body frame, per element, scalars broadcast: ``accel_bias_error`` (3,) m/s^2,
+    ``accel_scale_error`` (3, 3) dimensionless (of ``M``), ``mag_bias_error_ut`` (3,) µT (hard
+    iron), ``mag_scale_error`` (3, 3) (soft iron). They are constant errors, not white noise:
+    the Kalman filter carries them as coloured measurement noise (see :func:`kalman`).
     """
 
     update_interval_s: float = 0.1
@@ -61,8 +70,10 @@ class AhrsConfig:
     gyro_bias_prior: float = np.radians(1.0)
     tilt_noise_floor: float = np.radians(0.01)
     heading_noise_floor: float = np.radians(0.05)
-    accel_error: float = 0.0
-    mag_error_ut: float = 0.0
+    accel_bias_error: float | np.ndarray = 0.0
+    accel_scale_error: float | np.ndarray = 0.0
+    mag_bias_error_ut: float | np.ndarray = 0.0
+    mag_scale_error: float | np.ndarray = 0.0
     init_s: float = 1.0
 
 
@@ -112,13 +123,29 @@ def initial_attitude(samples: ImuSamples, declination: float, n: int) -> np.ndar
     return from_rph(roll, pitch, heading).as_matrix()
 
 
-def _measure(att: np.ndarray, accel: np.ndarray, mag: np.ndarray, declination: float):
-    """Tilt and heading innovations (3,) ~ (dtheta_N, dtheta_E, -dtheta_D) and |f|, |m_h|."""
-    f, m = np.einsum("nij,knj->ki", att, np.stack([accel, mag])) / len(accel)
-    fn = np.linalg.norm(f)
-    mh = np.hypot(m[0], m[1])
+@dataclass(frozen=True)
+class _Block:
+    """One update block: DCMs ``att`` (n, 3, 3) and their mean ``c_mean``; ``rate`` (3,) rad/s the
+    mean bias-corrected body rate, ``turn`` rad the angle turned w.r.t. NED over the block;
+    ``outer`` (2, 3, 3, 3) = ``mean_k C_k[:, i] x_k[j]`` for x = accelerometer, magnetometer (body);
+    the NED means ``f = mean_k C_k f_k``, ``m = mean_k C_k m_k`` (its diagonal sums), ``|f|``, ``|m_h|``."""
+
+    att: np.ndarray
+    c_mean: np.ndarray
+    rate: np.ndarray
+    turn: float
+    outer: np.ndarray
+    f: np.ndarray
+    m: np.ndarray
+    fn: float
+    mh: float
+
+
+def _measure(blk: _Block, declination: float) -> np.ndarray:
+    """Tilt and heading innovations (3,) ~ (dtheta_N, dtheta_E, -dtheta_D) of a block."""
+    f, m = blk.f, blk.m
     psi = np.arctan2(m[1], m[0]) - declination
-    return np.array([-f[1] / fn, f[0] / fn, (psi + np.pi) % (2 * np.pi) - np.pi]), fn, mh
+    return np.array([-f[1] / blk.fn, f[0] / blk.fn, (psi + np.pi) % (2 * np.pi) - np.pi])
 
 
 def _check(samples: ImuSamples, config: AhrsConfig) -> tuple[int, int]:
@@ -132,7 +159,7 @@ def _check(samples: ImuSamples, config: AhrsConfig) -> tuple[int, int]:
 
 
 def _run(samples: ImuSamples, latitude: float, config: AhrsConfig, correct, name: str) -> AhrsResult:
-    """Shared loop: propagate each block, measure, let ``correct`` return (dtheta, db, sigmas)."""
+    """Shared loop: propagate each block, measure, let ``correct(z, block)`` return (dtheta, db, sigmas)."""
     n_blk, n_init = _check(samples, config)
     w_ie = earth_rate_ned(latitude)
     prop = BlockPropagator(n_blk, samples.dt, w_ie)
@@ -141,9 +168,16 @@ def _run(samples: ImuSamples, latitude: float, config: AhrsConfig, correct, name
     dtheta = np.zeros(3)
     out_t, out_c, out_d, out_b, out_s = [], [], [], [], []
     for i0 in range(0, len(samples) - n_blk + 1, n_blk):
-        att = prop.propagate(c, with_previous(samples.gyro, i0, i0 + n_blk) - bg, dtheta)
-        z, fn, mh = _measure(att, samples.accel[i0:i0 + n_blk], samples.mag[i0:i0 + n_blk], config.declination)
-        dtheta, dbg, sig = correct(z, att.mean(axis=0), fn, mh, samples.gyro[i0:i0 + n_blk].mean(axis=0))
+        rates = with_previous(samples.gyro, i0, i0 + n_blk) - bg
+        att = prop.propagate(c, rates, dtheta)
+        outer = np.einsum("kai,skj->saij", att, np.stack([samples.accel[i0:i0 + n_blk],
+                                                          samples.mag[i0:i0 + n_blk]])) / n_blk
+        f, m = np.einsum("saii->sa", outer)
+        c_mean = att.mean(axis=0)
+        rate = rates[1:].mean(axis=0)
+        blk = _Block(att, c_mean, rate, float(np.linalg.norm(rate - c_mean.T @ w_ie)) * n_blk * samples.dt,
+                     outer, f, m, float(np.linalg.norm(f)), float(np.hypot(m[0], m[1])))
+        dtheta, dbg, sig = correct(_measure(blk, config.declination), blk)
         c = att[-1]  # dtheta is applied at the start of the next block
         bg = bg + dbg
         out_t.append(samples.t[i0 + n_blk - 1])
@@ -168,21 +202,50 @@ def complementary(samples: ImuSamples, latitude: float, config: AhrsConfig = Ahr
     kp, ki = 2.0 / tau, 1.0 / tau ** 2
     nan6 = np.full(6, np.nan)
 
-    def correct(z, c_mean, fn, mh, w_mean):
+    def correct(z, blk):
         e = np.array([z[0], z[1], -z[2]])
-        return kp * T * e, -T * c_mean.T @ (ki * e), nan6
+        return kp * T * e, -T * blk.c_mean.T @ (ki * e), nan6
 
     return _run(samples, latitude, config, correct, "complementary")
 
 
+def _residual_sigma(config: AhrsConfig) -> np.ndarray:
+    """1-sigma (24,) of the residual sensor errors ``[db_a, vec dM_a, db_m, vec dM_m]`` (row-major ``M``)."""
+    return np.concatenate([np.broadcast_to(np.asarray(v, float), shape).ravel() for v, shape in (
+        (config.accel_bias_error, (3,)), (config.accel_scale_error, (3, 3)),
+        (config.mag_bias_error_ut, (3,)), (config.mag_scale_error, (3, 3)))])
+
+
+# rad: the coloured measurement noise decorrelates as exp(-turn / this) while the unit turns. The
+# residual errors make tilt and heading errors that are harmonics of the turn angle; the first
+# harmonic's correlation cos(turn) has area 1 rad up to its first zero, which exp(-turn / 1 rad) keeps.
+ROTATION_CORRELATION_RAD = 1.0
+
+
 def kalman(samples: ImuSamples, noise: ProcessNoise, latitude: float, config: AhrsConfig = AhrsConfig(),
            mag_noise_ut: np.ndarray | None = None, scale_sigma: float = 0.0) -> AhrsResult:
-    """Error-state Kalman filter with gyro-bias states (6 states: attitude error NED, gyro bias body).
+    """Error-state Kalman AHRS: attitude error (NED), gyro bias (body) and coloured measurement-noise states.
 
     Process noise: gyro ARW and bias random walk from ``noise`` (the set's noise block).
-    Measurement noise: tilt ``VRW / (g sqrt(T))`` (the block mean of white accelerometer noise),
-    heading ``sigma_m / (|m_h| sqrt(n))`` with ``sigma_m`` the magnetometer white noise
+    White measurement noise: tilt ``VRW / (g sqrt(T))`` (the block mean of white accelerometer
+    noise), heading ``sigma_m / (|m_h| sqrt(n))`` with ``sigma_m`` the magnetometer white noise
     (``mag_noise_ut``, default :func:`mag_white_noise` of the samples), each with its floor.
+
+    Coloured measurement noise: the calibration errors left in the accelerometer and magnetometer
+    samples (``config.accel_*_error``, ``config.mag_*_error``; ``p = [db_a, vec dM_a, db_m,
+    vec dM_m]``, constant in the body frame, covariance ``Sigma_p``) make tilt and heading errors
+    ``e_k = G_k p`` with ``G_k = dz / d(mean_j C_j (db + dM x_j))`` at update ``k``: constant while
+    the unit is still, changing only as the attitude turns them, so not white noise. ``e`` (one
+    state per tilt / heading measurement with a non-zero residual) is a Gauss-Markov process
+    with the covariance the set implies: ``Sigma_k = G_k Sigma_p G_k^T``,
+    ``C_k = G_k Sigma_p G_{k-1}^T``, ``e_k = Phi e_{k-1} + w``, ``Phi = rho C_k Sigma_{k-1}^-1``,
+    ``Q = Sigma_k - rho Phi C_k^T`` (positive semi-definite, marginal variance exact), with
+    ``rho = exp(-turn / ROTATION_CORRELATION_RAD)`` for the angle turned w.r.t. NED over the block
+    beyond what the gyro white noise explains (the one-step fit alone would keep the errors
+    correlated over many revolutions at a slow rate). At rest ``Phi = I``, ``Q = 0``: an offset
+    the filter keeps apart from the gyro drift. The filter has no body-frame error states: it
+    does not re-calibrate the sensors.
+
     ``scale_sigma`` (dimensionless, 1-sigma) is the gyro scale-factor / misalignment error left in
     the samples: it turns into an apparent bias ``dM w`` that jumps whenever the rate changes,
     so each update adds ``(scale_sigma |dw|)^2`` to the bias covariance (dw: change of the mean
@@ -195,26 +258,65 @@ def kalman(samples: ImuSamples, noise: ProcessNoise, latitude: float, config: Ah
     vrw = float(np.mean(noise.accel_white))
     q_att = np.diag(noise.gyro_white ** 2) * T
     q_b = np.diag(noise.gyro_bias_rw ** 2) * T
-    H = np.zeros((3, 6))
-    H[0, 0] = H[1, 1] = 1.0
-    H[2, 2] = -1.0
-    phi = np.eye(6)
+    var_p = _residual_sigma(config) ** 2
+    # a turn the gyro white noise explains is no turn (5 sigma of the angle random walk over a
+    # block; the norm of three such axes stays below 4 sigma 99.9 % of the time): the unit is still
+    still_turn = 5.0 * float(np.max(noise.gyro_white)) * np.sqrt(T)
+    rows = np.nonzero([np.any(var_p[:12] > 0)] * 2 + [np.any(var_p[12:] > 0)])[0]  # measurements with coloured noise
+    n_e = len(rows)
+    n_x = 6 + n_e
+    H = np.zeros((3, n_x))
+    H[:, :3] = np.diag([1.0, 1.0, -1.0])
+    H[rows, 6 + np.arange(n_e)] = 1.0
+    phi = np.eye(n_x)
     phi[:3, :3] -= skew(w_ie) * T
-    state = {"P": np.diag([1e-4, 1e-4, 1e-2, *np.full(3, config.gyro_bias_prior ** 2)])}
-    qd = np.zeros((6, 6))
+    qd = np.zeros((n_x, n_x))
+    g = np.zeros((3, 24))
+    jac = np.zeros((2, 3, 12))
+    eye_e = np.eye(n_e)
+    P0 = np.zeros((n_x, n_x))
+    P0[np.diag_indices(6)] = [1e-4, 1e-4, 1e-2, *np.full(3, config.gyro_bias_prior ** 2)]
+    state = {"P": P0, "e": np.zeros(n_e)}
 
-    def correct(z, c_mean, fn, mh, w_mean):
-        dw = np.linalg.norm(w_mean - state.get("w", w_mean))
-        state["w"] = w_mean
-        qd[3:, 3:] = q_b + np.eye(3) * (scale_sigma * dw) ** 2
-        phi[:3, 3:] = -c_mean * T
-        qd[:3, :3] = c_mean @ q_att @ c_mean.T
+    def coloured_noise_step(blk):
+        """Set ``phi`` and ``qd`` of the measurement-error states for the step to this block."""
+        # d(mean_k C_k (db + dM x_k)) / d[db, vec dM] = [C_mean, outer] (3, 12) per sensor, times
+        # d(-f_E/|f|, f_N/|f|) / d f_NED = ([u_E u - e_E], [e_N - u_N u]) / |f| and d atan2(m_E, m_N) / d m_NED
+        jac[:, :, :3] = blk.c_mean
+        jac[:, :, 3:] = blk.outer.reshape(2, 3, 9)
+        u = blk.f / blk.fn
+        v = u @ jac[0]
+        g[0, :12] = (u[1] * v - jac[0, 1]) / blk.fn
+        g[1, :12] = (jac[0, 0] - u[0] * v) / blk.fn
+        g[2, 12:] = (blk.m[0] * jac[1, 1] - blk.m[1] * jac[1, 0]) / blk.mh ** 2
+        gr = g[rows]
+        gs = gr * var_p
+        sigma = gs @ gr.T
+        if "g" in state:
+            rho = np.exp(-max(0.0, blk.turn - still_turn) / ROTATION_CORRELATION_RAD)
+            cross = gs @ state["g"].T
+            phi[6:, 6:] = rho * cross @ state["sigma_inv"]
+            qd[6:, 6:] = sigma - rho * phi[6:, 6:] @ cross.T
+        else:
+            phi[6:, 6:] = eye_e
+            qd[6:, 6:] = sigma
+        # (a relative 1e-9 ridge keeps the inverse finite when a residual leaves a direction unexcited)
+        state["g"], state["sigma_inv"] = gr, np.linalg.inv(sigma + eye_e * (1e-9 * np.trace(sigma) + 1e-300))
+
+    def correct(z, blk):
+        dw = np.linalg.norm(blk.rate - state.get("w", blk.rate))
+        state["w"] = blk.rate
+        if n_e:
+            coloured_noise_step(blk)
+        qd[3:6, 3:6] = q_b + np.eye(3) * (scale_sigma * dw) ** 2
+        phi[:3, 3:6] = -blk.c_mean * T
+        qd[:3, :3] = blk.c_mean @ q_att @ blk.c_mean.T
         P = phi @ state["P"] @ phi.T + qd
-        r_tilt = ((vrw / fn) ** 2 / T + config.tilt_noise_floor ** 2 + (config.accel_error / fn) ** 2)
-        r_head = (sig_m ** 2 / (mh ** 2 * n_blk) + config.heading_noise_floor ** 2
-                  + (config.mag_error_ut / mh) ** 2)
-        P, dx, _ = sequential_update(P, H, z, np.array([r_tilt, r_tilt, r_head]))
-        state["P"] = P
-        return dx[:3], dx[3:], np.sqrt(np.diag(P))
+        e = phi[6:, 6:] @ state["e"]
+        r_tilt = (vrw / blk.fn) ** 2 / T + config.tilt_noise_floor ** 2
+        r_head = sig_m ** 2 / (blk.mh ** 2 * n_blk) + config.heading_noise_floor ** 2
+        P, dx, _ = sequential_update(P, H, z - H[:, 6:] @ e, np.array([r_tilt, r_tilt, r_head]))
+        state["P"], state["e"] = P, e + dx[6:]  # attitude and bias corrections are fed back, e is kept
+        return dx[:3], dx[3:6], np.sqrt(np.diag(P)[:6])
 
     return _run(samples, latitude, config, correct, "kalman")
