@@ -10,7 +10,10 @@ Analysis (``workbench analyze multiposition SESSION_DIR``):
 :func:`workbench.analysis.turntable.fit_accel` and :func:`fit_gyro_static` on all static
 steps. Options: ``nonlinearity`` (auto | fit | none), ``earth_rate`` (auto | model | ignore),
 ``position_sigma_deg`` (1-sigma tilt of each position: the fixture's repeatability, default
-0.01°; ``"auto"`` for hand-made positions), ``settle_s``.
+0.01°; ``"auto"`` for hand-made positions), ``settle_s``, ``accel_bias_instability_mg`` /
+``gyro_bias_instability_deg_h`` (the unit's bias instability B from its Allan result, scalar or
+3 axes: a floor for the bias wander that short dwells cannot show; default none, and a
+warning says when the dwells could hide one larger than the bias sigma).
 
 References: thesis sec. 1.3 (shared/seeds/000_...).
 """
@@ -24,7 +27,7 @@ from workbench import units
 from workbench.analysis.turntable import TriadFit, fit_accel, fit_gyro_static
 from workbench.calset import CalibrationSet
 from workbench.errors import ProcedureError
-from workbench.procedure import ProcedureResult, procedure_options
+from workbench.procedure import ProcedureResult, lab_option, procedure_options
 from workbench.sequence import Hold, Sequence, mount_matrix
 from workbench.session import Session
 
@@ -40,9 +43,12 @@ DEFAULTS = {
     "earth_rate": "auto",
     "position_sigma_deg": 0.01,
     "settle_s": 1.0,
+    "accel_bias_instability_mg": None,
+    "gyro_bias_instability_deg_h": None,
 }
 _SEQUENCE_KEYS = ("positions", "dwell_s", "table_angle_deg")
-_ANALYSIS_KEYS = ("nonlinearity", "earth_rate", "position_sigma_deg", "settle_s")
+_ANALYSIS_KEYS = ("nonlinearity", "earth_rate", "position_sigma_deg", "settle_s", "accel_bias_instability_mg",
+                  "gyro_bias_instability_deg_h")
 POSITION_SETS = (6, 12, 18, 24)
 
 
@@ -96,8 +102,10 @@ def analyze(session: Session, **opts) -> ProcedureResult:
     """Accelerometer and gyro static fits of all static steps (see the module docstring)."""
     o = procedure_options(NAME, opts, DEFAULTS, _ANALYSIS_KEYS)
     acc = fit_accel(session, None, str(o["nonlinearity"]), settle_s=float(o["settle_s"]),
-                    position_sigma=position_sigma(o["position_sigma_deg"]))
-    gyr = fit_gyro_static(session, None, str(o["earth_rate"]), settle_s=float(o["settle_s"]))
+                    position_sigma=position_sigma(o["position_sigma_deg"]),
+                    bias_instability=lab_option(NAME, o, "accel_bias_instability_mg", "mg"))
+    gyr = fit_gyro_static(session, None, str(o["earth_rate"]), settle_s=float(o["settle_s"]),
+                          bias_instability=lab_option(NAME, o, "gyro_bias_instability_deg_h", "deg/h"))
     calset = CalibrationSet(unit=session.unit, triads={"accel": acc.to_calibration(), "gyro": gyr.to_calibration()},
                             notes={NAME: {"accel": dict(acc.notes), "gyro": dict(gyr.notes)}})
     return ProcedureResult(NAME, result=result_dict({"accel": acc, "gyro": gyr}), calibration=calset,

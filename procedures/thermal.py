@@ -14,7 +14,11 @@ Two chamber profiles:
 
 Analysis: :func:`workbench.analysis.thermal.analyze_thermal` (per-soak turntable fits, or a
 direct fit of bias against the unit temperature for ramps; cross-validated polynomial order;
-hysteresis). Product: a calibration set with the ``thermal`` block (t_ref ``t_ref_c``).
+hysteresis). ``accel_bias_instability_mg`` / ``gyro_bias_instability_deg_h``: the unit's Allan
+bias instability B (the campaign passes its Allan result's), the floor of each soak's bias sigma;
+``accel_rrw_m_s_h_sqrt_h`` / ``gyro_rrw_deg_h_sqrt_h``: its bias random walk K, whose wander since
+the session start enters the sigma of the bias at t_ref (``with_bias_random_walk``).
+Product: a calibration set with the ``thermal`` block (t_ref ``t_ref_c``).
 The default profile is short (seven soaks, -10..50 °C, up only) so it fits in a campaign;
 use ``t_min_c=-40, t_max_c=85, step_c=15, return_sweep=True`` for a full qualification sweep.
 """
@@ -26,7 +30,7 @@ import numpy as np
 from workbench.analysis.thermal import analyze_thermal, to_calibration
 from workbench.calset import CalibrationSet
 from workbench.errors import RigLimitError
-from workbench.procedure import ProcedureResult
+from workbench.procedure import ProcedureResult, lab_option
 from workbench.sequence import Hold, Ramp, Rotate, Sequence, Soak, with_options
 from workbench.units import to_unit
 
@@ -40,6 +44,8 @@ DEFAULTS = {
     "settle_tol_c_per_min": 0.05, "settle_window_s": 120.0,
     "t_ref_c": 25.0, "max_order": 5, "order": None, "hysteresis": "auto", "ramp_window_s": 60.0,
     "reference": None, "position_sigma_deg": 0.01,
+    "accel_bias_instability_mg": None, "gyro_bias_instability_deg_h": None,
+    "accel_rrw_m_s_h_sqrt_h": None, "gyro_rrw_deg_h_sqrt_h": None,
 }
 SIX = ("z-down", "z-up", "x-up", "x-down", "y-up", "y-down")
 RATE_MOUNTS = ("z-down", "x-up", "y-up")
@@ -110,7 +116,12 @@ def analyze(session, **options) -> ProcedureResult:
         reference = {t: ref.model(t) for t in ("gyro", "accel") if t in ref.triads}
     sigma = opts["position_sigma_deg"]
     result = analyze_thermal(session, reference=reference, **{k: opts[k] for k in _ANALYSIS_KEYS},
-                             position_sigma=sigma if sigma == "auto" else float(np.radians(sigma)))
+                             position_sigma=sigma if sigma == "auto" else float(np.radians(sigma)),
+                             bias_instability={"accel": lab_option(NAME, opts, "accel_bias_instability_mg", "mg"),
+                                               "gyro": lab_option(NAME, opts, "gyro_bias_instability_deg_h",
+                                                                  "deg/h")},
+                             bias_rrw={"accel": lab_option(NAME, opts, "accel_rrw_m_s_h_sqrt_h", "m/s/h/sqrt(h)"),
+                                       "gyro": lab_option(NAME, opts, "gyro_rrw_deg_h_sqrt_h", "deg/h/sqrt(h)")})
     return ProcedureResult(NAME, result.to_dict(), to_calibration(result, session.unit), result,
                            _summary(result), list(result.warnings))
 

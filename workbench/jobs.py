@@ -15,6 +15,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
 
+import numpy as np
+
+from workbench import units
 from workbench.calset import CalibrationSet, Unit, atomic_write_text, merge
 from workbench.errors import ProcedureError, WorkbenchError
 from workbench.procedure import ProcedureResult, run_analysis
@@ -89,6 +92,38 @@ def resume_procedure(out_dir: Path, progress: Progress | None = None) -> Session
     return record(rec, rig, progress)
 
 
+# analysis options a campaign procedure takes from the noise block of an earlier one (the Allan
+# record): option name -> (triad, noise term, lab unit of the option)
+NOISE_OPTIONS = {"accel_bias_instability_mg": ("accel", "bias_instability", "mg"),
+                 "gyro_bias_instability_deg_h": ("gyro", "bias_instability", "deg/h"),
+                 "accel_rrw_m_s_h_sqrt_h": ("accel", "rrw", "m/s/h/sqrt(h)"),
+                 "gyro_rrw_deg_h_sqrt_h": ("gyro", "rrw", "deg/h/sqrt(h)")}
+
+
+def noise_options(proc: ModuleType, sets: list[CalibrationSet]) -> dict:
+    """The :data:`NOISE_OPTIONS` ``proc`` takes, from the first of ``sets`` with that noise term.
+
+    E.g. the bias instability B of the Allan record sets the floor of the multi-position bias
+    sigma (``workbench.analysis.position_check``) and its rate random walk K the wander in a
+    thermal sweep's bias at t_ref. On an axis where the record did not observe the term, the
+    upper end of its 95 % interval (what the data allow) is used: uncertainties stay on the
+    safe side.
+    """
+    out = {}
+    for key, (triad, term, unit) in NOISE_OPTIONS.items():
+        if key not in getattr(proc, "DEFAULTS", {}):
+            continue
+        for s in sets:
+            value = s.noise_term(triad, term)
+            bound = np.array([np.nan if b is None else b[1] for b in
+                              s.noise.get(triad, {}).get(f"{term}_ci95") or [None] * 3], float)
+            value = np.where(np.isfinite(value), value, bound)
+            if np.isfinite(value).all():
+                out[key] = units.to_unit(value, unit).tolist()
+                break
+    return out
+
+
 @dataclass
 class CampaignResult:
     """The merged calibration set of a campaign and the result of each procedure."""
@@ -106,7 +141,10 @@ def run_campaign(spec, truth, cfg: RigConfig, seed: int, out_dir: Path, store=No
     Each procedure records into ``out_dir/<name>/session`` and writes its results and figures to
     ``out_dir/<name>``; the merged set goes to ``out_dir/calibration.json`` and, with a
     ``store``, into the store (per-procedure results too), after everything succeeded.
-    ``options`` maps a procedure name to its sequence options (defaults otherwise).
+    ``options`` maps a procedure name to its sequence options (defaults otherwise). Holds at a
+    set temperature run at the chamber's ambient, models with a reference temperature refer to
+    it, and later procedures take the noise terms of earlier ones (:func:`noise_options`);
+    ``campaign.json`` lists the analysis options so set.
     """
     procs = [p for p in campaign_procedures(set(spec.triads)) if applies(p, spec) and not needs_calibration(p)]
     if only:
@@ -116,15 +154,23 @@ def run_campaign(spec, truth, cfg: RigConfig, seed: int, out_dir: Path, store=No
     out_dir = Path(out_dir)
     results: dict[str, ProcedureResult] = {}
     sessions: dict[str, Session] = {}
+    analyses: dict[str, dict] = {}  # the analysis options the campaign set, per procedure
+    ambient = cfg.chamber.initial_c
     for k, proc in enumerate(procs):
         pdir = out_dir / proc.NAME
         progress = progress_for(proc.NAME) if progress_for else None
+        defaults = getattr(proc, "DEFAULTS", {})
+        # a hold at a set temperature runs at the ambient the other procedures run at
+        seq_options = {**({"temperature_c": ambient} if "temperature_c" in defaults else {}),
+                       **((options or {}).get(proc.NAME) or {})}
         session = record_procedure(proc, spec, truth, cfg, seed + 101 * (k + 1), pdir / "session",
-                                   (options or {}).get(proc.NAME), progress)
+                                   seq_options, progress)
         sessions[proc.NAME] = session
         # a model with a reference temperature refers to the ambient the other procedures ran at,
         # so that its bias and scale factor at t_ref merge consistently with theirs
-        analysis = {"t_ref_c": cfg.chamber.initial_c} if "t_ref_c" in getattr(proc, "DEFAULTS", {}) else {}
+        analysis = {"t_ref_c": ambient} if "t_ref_c" in defaults else {}
+        analysis.update(noise_options(proc, [r.calibration for r in results.values() if r.calibration is not None]))
+        analyses[proc.NAME] = analysis
         results[proc.NAME] = run_analysis(proc, session, analysis, pdir, None)
     sets = [r.calibration for r in results.values() if r.calibration is not None]
     if not sets:
@@ -133,7 +179,7 @@ def run_campaign(spec, truth, cfg: RigConfig, seed: int, out_dir: Path, store=No
     merged.save(out_dir / "calibration.json")
     atomic_write_text(out_dir / "campaign.json", json.dumps({
         "unit": {"serial": truth.serial, "model": truth.model}, "grade": spec.name, "seed": seed,
-        "procedures": list(results), "calibration_id": merged.id,
+        "procedures": list(results), "analysis_options": analyses, "calibration_id": merged.id,
         "warnings": {n: r.warnings for n, r in results.items()}}, indent=1) + "\n")
     if store is not None:
         for name, r in results.items():

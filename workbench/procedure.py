@@ -20,6 +20,22 @@ from workbench.calset import CalibrationSet, atomic_write_text
 from workbench.session import Session
 
 
+def lab_option(procedure: str, options: Mapping, key: str, unit: str) -> np.ndarray | None:
+    """Option ``key`` given in the lab ``unit`` (a scalar or one value per axis) in SI; None if absent.
+
+    E.g. ``lab_option("multiposition", o, "gyro_bias_instability_deg_h", "deg/h")`` -> rad/s.
+    """
+    from workbench import units
+    from workbench.errors import ProcedureError
+
+    if options.get(key) is None:
+        return None
+    try:
+        return np.asarray(options[key], float) * units.factor(unit)
+    except (TypeError, ValueError):
+        raise ProcedureError(f"{procedure}: {key}={options[key]!r} is not a number or a list of 3 numbers") from None
+
+
 @dataclass
 class ProcedureResult:
     """What an analysis returns.

@@ -80,11 +80,23 @@ def _stats(step: StepRecord, df: pd.DataFrame, revolutions: int) -> StepStats:
 @dataclass(frozen=True)
 class MeanNoise:
     """Noise of step means: ``white`` (3,) density sqrt(W), u/√Hz; ``floor`` (3,) sqrt(F), u;
-    ``variance`` (n, 3) variance of each step's mean, u^2 (u = the triad's SI unit)."""
+    ``variance`` (n, 3) variance of each step's mean, u^2 (u = the triad's SI unit);
+    ``floor_limit`` (3,) sqrt of the detection threshold of F (two standard errors of the Allan
+    variance at ``T/4``): a floor up to it can hide in these steps, u."""
 
     white: np.ndarray
     floor: np.ndarray
     variance: np.ndarray
+    floor_limit: np.ndarray
+
+    def with_floor(self, floor: np.ndarray | float) -> MeanNoise:
+        """The noise with its floor raised to at least ``floor`` (scalar or (3,), sqrt(F), u).
+
+        For a unit whose bias instability the session's dwells are too short to show: ``floor``
+        = ``0.664 B`` from the unit's Allan characterisation (IEEE 952, B its bias instability).
+        """
+        new = np.maximum(self.floor, np.broadcast_to(np.asarray(floor, float), (3,)))
+        return MeanNoise(self.white, new, self.variance - self.floor**2 + new**2, self.floor_limit)
 
 
 def mean_variance(signals: list[np.ndarray], fs: float) -> MeanNoise:
@@ -93,14 +105,18 @@ def mean_variance(signals: list[np.ndarray], fs: float) -> MeanNoise:
     ``AVAR(tau) = W / tau + F``: white noise ``W`` (from the sample-to-sample differences,
     ``W = var(diff) / 2 / fs``) plus a flat bias-instability floor ``F`` (IEEE 952), the
     excess of the Allan variance at ``tau = T/4`` (``T`` the shortest signal, non-overlapping
-    blocks, averaged over the signals) over the white part. ``F`` is kept where it exceeds two
-    standard errors of that Allan variance (chi-square with the pooled block-difference count;
-    2.3 % false alarms on white noise), else the noise is taken as white: a floor of about the
-    white level at ``T/4`` goes undetected in a short session (six 60-s positions). The
-    variance of a mean over ``T_i`` is ``W / T_i + F``: the white part averages down, the bias
-    wander between steps does not. (A rate random walk that grows over the whole session is
-    not seen at ``T/4``; the scatter between positions is what can reveal it, see
-    :func:`workbench.analysis.turntable.bias_wander`.)
+    blocks, averaged over the signals) over the white part. ``F`` is kept on an axis where it
+    exceeds two standard errors of that Allan variance (chi-square with the pooled
+    block-difference count; 2.3 % false alarms on white noise), and on all three axes (clipped
+    at 0) where their summed excess exceeds two standard errors of the sum (the triad shares
+    one technology; √3 more power). Else the noise is taken as white: a floor of about the
+    white level at ``T/4`` goes undetected in a short session (six 5-s positions); that
+    threshold is returned as ``floor_limit`` (sqrt, u) so that a caller can say so, or raise the
+    floor to the unit's Allan result (:meth:`MeanNoise.with_floor`). The variance of a mean over
+    ``T_i`` is ``W / T_i + F``: the white part averages down, the bias wander between steps does
+    not. (A rate random walk that grows over the whole session is not seen at ``T/4``; the
+    scatter between positions is what can reveal it, see
+    :func:`workbench.analysis.turntable.between_step_variance`.)
     """
     n_min = min(len(x) for x in signals)
     m = n_min // 4
@@ -115,9 +131,11 @@ def mean_variance(signals: list[np.ndarray], fs: float) -> MeanNoise:
     tau = m / fs
     a2 = np.mean(vals, axis=0)
     f = a2 - w / tau
-    f = np.where(f > 2 * a2 * np.sqrt(2.0 / dof), f, 0.0)
+    limit = 2 * a2 * np.sqrt(2.0 / dof)
+    triad = f.sum() > 2 * np.sqrt(np.sum(a2**2) * 2.0 / dof)  # the same test on the three axes' sum
+    f = np.where(triad | (f > limit), np.maximum(f, 0.0), 0.0)
     t = np.array([len(x) / fs for x in signals])
-    return MeanNoise(np.sqrt(w), np.sqrt(f), w[None, :] / t[:, None] + f[None, :])
+    return MeanNoise(np.sqrt(w), np.sqrt(f), w[None, :] / t[:, None] + f[None, :], np.sqrt(limit))
 
 
 def static_mean_variance(session: Session, stats: list[StepStats], triad: str, settle_s: float = 0.0) -> MeanNoise:

@@ -28,6 +28,7 @@ sources in sec. 1.2).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -379,6 +380,9 @@ class SoakPoint:
     ``rate_c_per_min`` its slope there; ``settle_time_s`` the time the soak step took to settle
     (None when it never did); ``settled`` = ``|rate_c_per_min|`` below the tolerance.
 
+    ``elapsed_s`` the mean time of the measurement steps since the session started (the bias
+    random walk since power-on grows with it, :func:`with_bias_random_walk`).
+
     ``direction`` +1 when the unit approached this temperature from below (up branch),
     -1 from above (down branch), 0 when it did not move (first soak at ambient).
     """
@@ -396,6 +400,7 @@ class SoakPoint:
     scale: np.ndarray
     scale_sigma: np.ndarray
     settled: bool
+    elapsed_s: float = float("nan")  # mean time of the measurement steps since the session's first sample
 
 
 @dataclass(frozen=True)
@@ -441,7 +446,8 @@ def _turntable():
 
 
 def soak_points(session, triads=("gyro", "accel"), settle_tol_c_per_min: float = 0.05,
-                settle_window_s: float = 120.0, position_sigma: float | str = 0.0
+                settle_window_s: float = 120.0, position_sigma: float | str = 0.0,
+                bias_instability: Mapping[str, np.ndarray | None] | None = None
                 ) -> tuple[dict[str, list[SoakPoint]], list[str]]:
     """Per-soak bias and scale factor of each triad, from the turntable estimators.
 
@@ -449,7 +455,8 @@ def soak_points(session, triads=("gyro", "accel"), settle_tol_c_per_min: float =
     steps; the gyro bias with ``fit_gyro_static`` on the same steps and, when the group has
     rate steps, the gyro scale factor with ``fit_gyro_rate`` (else not observed, NaN). The
     ``position_sigma`` (rad, or ``"auto"``) is the fixture's 1-sigma repeatability passed to the
-    turntable estimators. The soak's temperature is the mean unit temperature over its
+    turntable estimators; ``bias_instability`` maps a triad to its Allan bias instability B (SI,
+    scalar or (3,)), the floor of each soak's bias sigma (``turntable.fit_accel``). The soak's temperature is the mean unit temperature over its
     measurement steps; a soak whose
     unit temperature still moves
     during the measurement steps (regression slope at or above ``settle_tol_c_per_min``) is
@@ -498,14 +505,16 @@ def soak_points(session, triads=("gyro", "accel"), settle_tol_c_per_min: float =
         rates = [i for i in g.steps if session.step(i).kind == "rate"]
         for triad in triads:
             if triad == "accel":
-                fit = tt.fit_accel(session, steps=statics, position_sigma=position_sigma)
+                fit = tt.fit_accel(session, steps=statics, position_sigma=position_sigma,
+                                   bias_instability=(bias_instability or {}).get("accel"))
                 bias, bias_s = fit.bias, fit.bias_sigma
                 scale, scale_s = np.diag(fit.scale_misalignment), np.diag(fit.scale_misalignment_sigma)
             else:
                 rfit = tt.fit_gyro_rate(session, steps=rates, position_sigma=position_sigma) if rates else None
                 m = None if rfit is None else np.where(np.isfinite(rfit.scale_misalignment_sigma),
                                                        rfit.scale_misalignment, 0.0)
-                fit = tt.fit_gyro_static(session, steps=statics, scale_misalignment=m)
+                fit = tt.fit_gyro_static(session, steps=statics, scale_misalignment=m,
+                                         bias_instability=(bias_instability or {}).get("gyro"))
                 bias, bias_s = fit.bias, fit.bias_sigma
                 scale = np.full(3, np.nan) if rfit is None else np.diag(rfit.scale_misalignment)
                 scale_s = np.full(3, np.nan) if rfit is None else np.diag(rfit.scale_misalignment_sigma)
@@ -513,7 +522,8 @@ def soak_points(session, triads=("gyro", "accel"), settle_tol_c_per_min: float =
             out[triad].append(SoakPoint(triad, g.soak_step, g.steps, g.setpoint_c, mean_t, rate, settle_time,
                                         direction,
                                         np.asarray(bias, float), np.asarray(bias_s, float),
-                                        np.asarray(scale, float).copy(), np.asarray(scale_s, float).copy(), settled))
+                                        np.asarray(scale, float).copy(), np.asarray(scale_s, float).copy(), settled,
+                                        float(tm.mean() - t_all[0])))
     # the first soak (usually at ambient) takes the direction of the next one's approach
     for pts in out.values():
         for i, p in enumerate(pts):
@@ -691,13 +701,47 @@ def fit_soaks(points: dict[str, list[SoakPoint]], t_ref_c: float = 25.0, max_ord
     return fits
 
 
+def elapsed_at(points: list[SoakPoint], t_ref_c: float) -> float:
+    """Session time (s) at which the sweep first passed ``t_ref_c``: interpolated between the
+    soaks (in time order) that bracket it, else the soak nearest to it in temperature."""
+    pts = sorted(points, key=lambda p: p.elapsed_s)
+    for a, b in zip(pts, pts[1:]):
+        if (a.temperature_c - t_ref_c) * (b.temperature_c - t_ref_c) <= 0 and a.temperature_c != b.temperature_c:
+            w = (t_ref_c - a.temperature_c) / (b.temperature_c - a.temperature_c)
+            return float(a.elapsed_s + w * (b.elapsed_s - a.elapsed_s))
+    return float(min(pts, key=lambda p: abs(p.temperature_c - t_ref_c)).elapsed_s)
+
+
+def with_bias_random_walk(fit: PolyFit, points: list[SoakPoint], rrw: np.ndarray | float | None) -> PolyFit:
+    """``fit`` (a bias fit over soaks) with the bias random walk in the sigma of its value at t_ref.
+
+    A bias random walk ``K`` (SI per axis: rad/s/√s, m/s²/√s; the Allan result's ``rrw``)
+    wanders by ``K sqrt(t)`` from the session start. Soaks follow one another in time, so the
+    polynomial absorbs the wander and its value at t_ref carries the wander at the time the
+    sweep passed t_ref (:func:`elapsed_at`; the first passage, a lower bound for a return
+    sweep): variance ``K^2 t`` is added to the constant term's. The bias the set reports is the
+    unit's at power-on, like a multi-position test's at ambient.
+    """
+    settled = [p for p in points if p.settled and np.isfinite(p.elapsed_s)]
+    if rrw is None or not settled:
+        return fit
+    sigma = fit.coeffs_sigma.copy()
+    sigma[:, 0] = np.hypot(sigma[:, 0], np.asarray(rrw, float) * np.sqrt(elapsed_at(settled, fit.t_ref_c)))
+    return replace(fit, coeffs_sigma=sigma)
+
+
 def analyze_thermal(session, triads=("gyro", "accel"), t_ref_c: float = 25.0, max_order: int = MAX_ORDER,
                     order: int | None = None, hysteresis: str = "auto", settle_tol_c_per_min: float = 0.05,
                     settle_window_s: float = 120.0, ramp_window_s: float = 60.0, reference=None,
-                    position_sigma: float | str = 0.0) -> ThermalResult:
+                    position_sigma: float | str = 0.0,
+                    bias_instability: Mapping[str, np.ndarray | None] | None = None,
+                    bias_rrw: Mapping[str, np.ndarray | None] | None = None) -> ThermalResult:
     """Thermal analysis of a session with soak steps (preferred) or ramp steps.
 
-    ``position_sigma`` (rad): the fixture's 1-sigma repeatability, for the per-soak fits.
+    ``position_sigma`` (rad): the fixture's 1-sigma repeatability, for the per-soak fits;
+    ``bias_instability``: triad -> Allan bias instability B (SI), for the per-soak fits;
+    ``bias_rrw``: triad -> bias random walk K (SI), for the sigma of the bias at t_ref
+    (:func:`with_bias_random_walk`; soak sweeps only).
     ``reference`` maps triad name -> TriadModel for the ramp fit's known-input term (optional).
     """
     warnings: list[str] = []
@@ -707,9 +751,13 @@ def analyze_thermal(session, triads=("gyro", "accel"), t_ref_c: float = 25.0, ma
         raise SessionError(f"{session.name}: no soak step followed by measurement steps and no ramp step: "
                            "not a thermal session")
     if soak_groups(session):
-        points, w = soak_points(session, triads, settle_tol_c_per_min, settle_window_s, position_sigma)
+        points, w = soak_points(session, triads, settle_tol_c_per_min, settle_window_s, position_sigma,
+                                bias_instability)
         warnings += w
         fits = fit_soaks(points, t_ref_c, max_order, order, hysteresis)
+        for triad, k in (bias_rrw or {}).items():
+            if f"{triad}.bias" in fits:
+                fits[f"{triad}.bias"] = with_bias_random_walk(fits[f"{triad}.bias"], points[triad], k)
         temps = [p.temperature_c for pts in points.values() for p in pts if p.settled]
         source = "soak"
     else:

@@ -18,15 +18,19 @@ recorded on a turntable (thesis sec. 1.3, shared/seeds/000_...), in the one mode
   mount as a nuisance (bias + G f); bias and ``G`` from the offsets when the mounts observe them.
 
 Each axis (row of the model) is a separate weighted least-squares problem solved by
-Gauss-Newton; weights are the batch-means variances of the step means. The covariance
+Gauss-Newton; weights are the variances of the step means from a white + bias-instability
+noise model (:func:`workbench.analysis.position_check.mean_variance`). The covariance
 ``(J' W J)^-1`` is scaled by the Birge ratio ``max(1, chi2 / dof)`` pooled over the three axes,
-so scatter between positions that the within-step noise does not explain (fixture and
-positioning errors, drift) widens the 1-sigma uncertainties. Parameters that the position
-set cannot observe are reported with NaN sigma and their prior value (0), with a warning when
-they were requested. A position that does not fit is found by leave-one-out residuals
+so scatter between positions that the noise model does not explain (fixture and positioning
+errors, drift) widens the 1-sigma uncertainties; the bias also carries the wander of the bias
+common to all positions (:func:`bias_wander`: the noise floor plus the between-position
+variance of :func:`between_step_variance`), which no scatter about the fit can show.
+Parameters that the position set cannot observe are reported with NaN sigma and their prior
+value (0), with a warning when they were requested. A position that does not fit is found by leave-one-out residuals
 (:func:`workbench.analysis.position_check.deleted_residual_statistics`) and named.
 
-Public: :class:`TriadFit`, :func:`fit_accel`, :func:`fit_gyro_static`, :func:`fit_gyro_rate`.
+Public: :class:`TriadFit`, :func:`fit_accel`, :func:`fit_gyro_static`, :func:`fit_gyro_rate`,
+:func:`between_step_variance`, :func:`bias_wander`.
 """
 
 from __future__ import annotations
@@ -39,9 +43,10 @@ import pandas as pd
 from scipy.optimize import brentq
 from scipy.stats import chi2 as chi2_dist
 
+from workbench.analysis.northfinding_theory import FLICKER_AVAR
 from workbench.analysis.position_check import (
-    StepStats, deleted_residual_statistics, mean_variance, motion_in_static, static_mean_variance, step_name,
-    step_stats, whole_revolution_samples, whole_revolutions,
+    MeanNoise, StepStats, deleted_residual_statistics, mean_variance, motion_in_static, static_mean_variance,
+    step_name, step_stats, whole_revolution_samples, whole_revolutions,
 )
 from workbench import units
 from workbench.calset import TriadCalibration
@@ -53,6 +58,7 @@ from workbench.session import Session, StepRecord
 AXES = "xyz"
 STATIC_KINDS = ("static", "soak")
 MISFIT_P = 1e-4  # false-alarm probability of the misfit test per session (Bonferroni over positions)
+POOL_DOF = 10  # fewer residual degrees of freedom on an axis: its between-step variance is pooled over the triad
 _NAN3 = np.full(3, np.nan)
 _NAN33 = np.full((3, 3), np.nan)
 
@@ -324,7 +330,8 @@ def _fit_with_misfits(build, stats: list[StepStats], y: np.ndarray, var: np.ndar
 # -- accelerometer -----------------------------------------------------------------------------
 
 def fit_accel(session: Session, steps: Sequence[int] | None = None, nonlinearity: str = "auto",
-              settle_s: float = 1.0, position_sigma: float | str = 0.0) -> TriadFit:
+              settle_s: float = 1.0, position_sigma: float | str = 0.0,
+              bias_instability: np.ndarray | float | None = None) -> TriadFit:
     """Accelerometer bias, ``M`` and nonlinearity from static positions (body frame, SI).
 
     ``steps``: indices of static steps (None = all static and soak steps). ``nonlinearity``:
@@ -342,6 +349,11 @@ def fit_accel(session: Session, steps: Sequence[int] | None = None, nonlinearity
     (hand-made positions) estimates ``s`` so that chi2/dof = 1 when the scatter exceeds the
     noise (chi2 beyond its 99.9 % point); the bias then comes mostly from each axis's own
     up/down pair, as in the classical six-position method.
+
+    ``bias_instability`` (m/s^2, scalar or (3,)): the unit's bias instability ``B`` (IEEE 952,
+    from its Allan characterisation); it sets a lower bound ``0.664 B`` on the bias-wander floor
+    of the step means, for dwells too short to show it (see :func:`bias_wander`). Without it a
+    warning gives the largest ``B`` the dwells could hide when that would exceed the bias sigma.
     """
     if nonlinearity not in ("auto", "fit", "none"):
         raise AnalysisError(f"nonlinearity={nonlinearity!r}: expected 'auto', 'fit' or 'none'")
@@ -349,7 +361,7 @@ def fit_accel(session: Session, steps: Sequence[int] | None = None, nonlinearity
     stats, warnings = _static_stats(session, steps, settle_s, "accelerometer fit")
     f = _specific_force(session, stats)
     y = np.array([s.accel for s in stats])
-    noise = static_mean_variance(session, stats, "accel", settle_s)
+    noise = _static_noise(session, stats, "accel", settle_s, bias_instability, context)
     var = noise.variance
     g = session.site.gravity
     levels = [np.unique(np.round(np.abs(f[:, j]) / g, 2)) for j in range(3)]
@@ -392,46 +404,97 @@ def fit_accel(session: Session, steps: Sequence[int] | None = None, nonlinearity
 
     fit, used, outliers, w2 = _fit_with_misfits(build, stats, y, position_var(tilt), context, residual_of)
     warnings += w2
-    result = _with_bias_wander(_accel_result(fit), fit, noise, position_var(tilt)[used])
+    between = between_step_variance(fit, position_var(tilt)[used])
+    result = _with_bias_wander(_accel_result(fit), noise, between)
+    if bias_instability is None:
+        warnings += _hidden_floor(noise, result.bias_sigma, stats, session.sample_rate_hz, "mg", context)
     comp = result.model().compensate(y)
     return replace(result, residuals=_residual_frame(stats, f, y, comp, position_var(tilt) * fit.scale, used),
                         outliers=tuple(stats[i].step.index for i in outliers), warnings=tuple(warnings),
                         chi2_reduced=fit.chi2 / fit.dof if fit.dof else float("nan"), dof=fit.dof,
                         notes={"gravity_m_s2": g, "positions": int(used.sum()), "position_sigma_rad": tilt,
-                               **_noise_notes(noise),
+                               **_noise_notes(noise, between),
                                "nonlinearity_axes": [AXES[j] for j in range(3) if nl_axes[j]]})
 
 
-def bias_wander(axes: _AxisFit, noise, var: np.ndarray) -> np.ndarray:
-    """Variance (3,) of the session's mean bias about the unit's long-term bias, SI^2.
+def between_step_variance(axes: _AxisFit, var: np.ndarray) -> np.ndarray:
+    """Between-step (random-effects) variance (3,) SI^2 of the step means beyond ``var``.
 
-    The fit treats step errors as independent, but bias instability and rate random walk
-    wander slowly and are largely common to all steps, so the session's mean bias departs
-    from the long-term bias by about their level whatever the number of positions. Their
-    level: the noise floor F of the step means plus, per axis where the scatter between steps
-    is significantly beyond the noise model (chi2_j above its 97.7 % point, as for F), the
-    between-step variance ``c_j`` that explains it (Paule-Mandel: ``sum r_i^2 / (var_ij + c_j)
-    = dof_j`` with the fit's residuals ``r``).
+    Bias instability and rate random walk move the bias from one position to the next by
+    about the Allan deviation at the dwell time, which the within-step noise model of a short
+    dwell misses (its floor ``F`` is kept only when the Allan variance at ``T/4`` shows it).
+    Paule-Mandel estimate: the ``c >= 0`` with ``sum r^2 / (var + c) = dof`` (``r`` the fit's
+    residuals, ``var`` the variances it used, (n_used, 3)); 0 when the scatter is within the
+    noise model (``chi2 <= dof``). Per axis when the axis has at least :data:`POOL_DOF` degrees
+    of freedom (18 and 24 positions), else pooled over the three axes (one wander level for the
+    triad): a variance from 2 degrees of freedom (an axis of a six-position fit) has a relative
+    standard error of 100 %.
     """
-    extra = np.zeros(3)
-    for j in range(3):
-        d = axes.dof_axes[j]
-        if d <= 0 or axes.chi2_axes[j] <= chi2_dist.isf(0.023, d):
-            continue
-        r2 = (axes.y_lin[:, j] - axes.jac[j] @ axes.beta[j]) ** 2
-        v = var[:, j]
-        extra[j] = brentq(lambda c: float(np.sum(r2 / (v + c))) - d, 0.0, float(r2.max()) * len(r2))
-    return noise.floor**2 + extra
+    r2 = np.column_stack([(axes.y_lin[:, j] - axes.jac[j] @ axes.beta[j]) ** 2 for j in range(3)])
+
+    def paule_mandel(cols: list[int]) -> float:
+        d = int(sum(axes.dof_axes[j] for j in cols))
+        rc, vc = r2[:, cols], var[:, cols]
+        if d <= 0 or float(np.sum(rc / vc)) <= d:
+            return 0.0
+        return float(brentq(lambda c: float(np.sum(rc / (vc + c))) - d, 0.0, float(rc.max()) * rc.size))
+
+    pooled = paule_mandel([0, 1, 2])
+    return np.array([paule_mandel([j]) if axes.dof_axes[j] >= POOL_DOF else pooled for j in range(3)])
 
 
-def _with_bias_wander(fit: TriadFit, axes: _AxisFit, noise, var: np.ndarray) -> TriadFit:
+def bias_wander(noise: MeanNoise, between: np.ndarray) -> np.ndarray:
+    """Variance (3,) SI^2 of the session's mean bias about the bias at the session start.
+
+    The fit treats step errors as independent, but bias instability and rate random walk are
+    largely common to all steps, so the session's mean bias departs from the bias at its start
+    by about their level at the dwell time whatever the number of positions (flat Allan
+    variance: the common part of the wander is as large as the part that differs between
+    steps). That level: the noise floor ``F`` of the step means plus the ``between``-step
+    variance (:func:`between_step_variance`).
+    """
+    return noise.floor**2 + between
+
+
+def _with_bias_wander(fit: TriadFit, noise: MeanNoise, between: np.ndarray) -> TriadFit:
     """The fit with :func:`bias_wander` added to the bias variance."""
-    return replace(fit, bias_sigma=np.sqrt(fit.bias_sigma**2 + bias_wander(axes, noise, var)))
+    return replace(fit, bias_sigma=np.sqrt(fit.bias_sigma**2 + bias_wander(noise, between)))
 
 
-def _noise_notes(noise) -> dict:
-    """Noise model of the step means for ``notes``: white density (SI/√Hz) and bias-wander floor (SI)."""
-    return {"noise_white_density": noise.white.tolist(), "noise_floor": noise.floor.tolist()}
+def _static_noise(session: Session, stats: list[StepStats], triad: str, settle_s: float,
+                  bias_instability: np.ndarray | float | None, context: str) -> MeanNoise:
+    """Noise of the static step means, its floor raised to the unit's ``bias_instability`` (SI) if given."""
+    noise = static_mean_variance(session, stats, triad, settle_s)
+    if bias_instability is None:
+        return noise
+    b = np.asarray(bias_instability, float)
+    if b.size not in (1, 3) or not np.all(b >= 0):
+        raise AnalysisError(f"{context}: bias_instability={bias_instability!r} must be >= 0 (scalar or 3 axes, SI)")
+    return noise.with_floor(np.sqrt(FLICKER_AVAR) * b.ravel())
+
+
+def _hidden_floor(noise: MeanNoise, bias_sigma: np.ndarray, stats: list[StepStats], fs: float, unit: str,
+                  context: str) -> list[str]:
+    """A warning naming the axes where a bias instability the dwells cannot show (Allan floor under
+    :attr:`MeanNoise.floor_limit`) could exceed the reported bias sigma; [] if none."""
+    b_lim = noise.floor_limit / np.sqrt(FLICKER_AVAR)
+    hidden = (noise.floor == 0) & (noise.floor_limit > bias_sigma)
+    if not hidden.any():
+        return []
+    dwell = min(s.n for s in stats) / fs
+    axes = ", ".join(f"{AXES[j]} {units.fmt(b_lim[j], unit, 2)} (bias sigma {units.fmt(bias_sigma[j], unit, 2)})"
+                     for j in range(3) if hidden[j])
+    return [f"{context}: a bias instability up to {axes} would not show in {dwell:.3g}-s dwells: the bias sigma "
+            "does not include one; give the unit's bias instability (its Allan result) or dwell longer"]
+
+
+def _noise_notes(noise, between: np.ndarray | None = None) -> dict:
+    """Noise model of the step means for ``notes``: white density (SI/√Hz), bias-wander floor (SI)
+    and, for static fits, the between-step deviation (SI, random effect)."""
+    out = {"noise_white_density": noise.white.tolist(), "noise_floor": noise.floor.tolist()}
+    if between is not None:
+        out["between_step_sigma"] = np.sqrt(between).tolist()
+    return out
 
 
 def _position_sigma(build, position_sigma: float | str, n: int, context: str) -> float:
@@ -466,7 +529,8 @@ def _accel_result(fit: _AxisFit) -> TriadFit:
 # -- gyro, static ------------------------------------------------------------------------------
 
 def fit_gyro_static(session: Session, steps: Sequence[int] | None = None, earth_rate: str = "auto",
-                    settle_s: float = 1.0, scale_misalignment: np.ndarray | None = None) -> TriadFit:
+                    settle_s: float = 1.0, scale_misalignment: np.ndarray | None = None,
+                    bias_instability: np.ndarray | float | None = None) -> TriadFit:
     """Gyro bias and g-sensitivity ``G`` from static positions (rad/s, rad/s per m/s^2, body frame).
 
     ``earth_rate``: ``"model"`` subtracts the Earth-rate projection ``(C_bn)' w_ie^n`` (needs the
@@ -474,6 +538,7 @@ def fit_gyro_static(session: Session, steps: Sequence[int] | None = None, earth_
     15 °/h), ``"auto"`` models it when the azimuth is known and says so when not.
     ``scale_misalignment``: ``M`` from a rate fit, used to project the Earth rate through
     ``I + M`` (default 0: an error of ``M`` x 15 °/h, 0.015 °/h for M = 1e-3).
+    ``bias_instability`` (rad/s): the unit's bias instability ``B``, as for :func:`fit_accel`.
     ``M`` and nonlinearity are not observed here (NaN sigma).
     """
     if earth_rate not in ("auto", "model", "ignore"):
@@ -490,7 +555,7 @@ def fit_gyro_static(session: Session, steps: Sequence[int] | None = None, earth_
     ref = (np.array([session.attitude(s.step, _angle(s)).inv().apply(w_ie) for s in stats]) @ gain.T if use_earth
            else np.zeros((len(stats), 3)))
     y = np.array([s.gyro for s in stats])
-    noise = static_mean_variance(session, stats, "gyro", settle_s)
+    noise = _static_noise(session, stats, "gyro", settle_s, bias_instability, context)
     var = noise.variance
 
     def build(rows: np.ndarray) -> _AxisFit:
@@ -511,11 +576,14 @@ def fit_gyro_static(session: Session, steps: Sequence[int] | None = None, earth_
 
     fit, used, outliers, w2 = _fit_with_misfits(build, stats, y, var, context, residual_of)
     warnings += w2
-    result = _with_bias_wander(_gyro_static_result(fit), fit, noise, var[used])
+    between = between_step_variance(fit, var[used])
+    result = _with_bias_wander(_gyro_static_result(fit), noise, between)
+    if bias_instability is None:
+        warnings += _hidden_floor(noise, result.bias_sigma, stats, session.sample_rate_hz, "deg/h", context)
     if np.isnan(result.g_sensitivity_sigma).any():
         warnings.append(f"{context}: g-sensitivity partly not observed by these positions (NaN sigma)")
     comp = result.model().compensate(y, specific_force=f)
-    notes: dict = {"positions": int(used.sum()), **_noise_notes(noise)}
+    notes: dict = {"positions": int(used.sum()), **_noise_notes(noise, between)}
     worst_sigma = float(np.nanmax(result.bias_sigma))
     if use_earth:
         notes["earth_rate"] = "modelled: Earth-rate projection subtracted at each position"
@@ -638,7 +706,7 @@ def fit_gyro_rate(session: Session, steps: Sequence[int] | None = None,
     offsets, off_cov = _offsets(fit, len(mounts))
     f_m = np.array([np.reshape(k, (3, 3)).T @ np.array([0.0, 0.0, -session.site.gravity]) for k in mounts])
     bias, bias_s, g, g_s = _bias_from_offsets(offsets, off_cov, f_m)
-    bias_s = np.sqrt(bias_s**2 + bias_wander(fit, noise, position_var(tilt)[used]))
+    bias_s = np.sqrt(bias_s**2 + bias_wander(noise, between_step_variance(fit, position_var(tilt)[used])))
     result = TriadFit("gyro", bias, m, n[:, 0], g, bias_s, m_s, n_s[:, 0], g_s, asym[:, 0], asym_s[:, 0])
     off_rows = onehot @ offsets
     comp = TriadModel(np.zeros(3), m, n[:, 0]).compensate(y - off_rows - asym[:, 0] * np.abs(w))
