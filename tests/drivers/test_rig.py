@@ -217,9 +217,9 @@ def test_soak_ramp_and_rotation_through_the_drivers(tmp_path, start_lab, closing
 INDEX = np.radians(90.0)  # rad: a quarter turn, no ambiguity in the direction of an absolute move
 
 
-def _index_run(lab, path, truth, rate_dps: float):
-    """Hold, then Index by INDEX at ``rate_dps`` (z-down, so gz is the table rate) through the real drivers."""
-    seq = Sequence("index", [Hold("z-down", 0.0, 1.0), Index(INDEX, 1.0, np.radians(rate_dps))])
+def _index_run(lab, path, truth, rate_dps: float, angle: float = INDEX):
+    """Hold, then Index by ``angle`` at ``rate_dps`` (z-down, so gz is the table rate) through the real drivers."""
+    seq = Sequence("index", [Hold("z-down", 0.0, 1.0), Index(angle, 1.0, np.radians(rate_dps))])
     rig = open_real_rig(load_rig_config(path))
     try:
         session = record(start(seq, rig, Unit(truth.serial, truth.model), "index", None), rig)
@@ -258,7 +258,7 @@ def test_index_runs_at_the_sequence_index_rate(base, tmp_path, start_lab):
     # the move carried the index rate (and, on hil.yaml, the acceleration limit 500 °/s^2 of turntable.max_accel_dps2)
     moves = [(key, f) for _, key, f in lab.table_log if key.startswith("position")]
     index_move = [("position_rate", {"rate_dps": "15.00000"}), ("position_accel", {"accel_dps2": "500.00000"}),
-                  ("position", {"angle_deg": "90.00000"})] if base == "hil" else \
+                  ("position_relative", {"delta_deg": "90.00000"})] if base == "hil" else \
         [("position", {"angle_deg": "90.00000", "rate_dps": "15.00000"})]
     assert any(moves[k:k + len(index_move)] == index_move for k in range(len(moves))), moves
     assert step.extra["index_rate_sent"] is True
@@ -272,6 +272,21 @@ def test_index_runs_at_the_sequence_index_rate(base, tmp_path, start_lab):
     gyro_rate = _gyro_plateau_rate(wz, rate, peak)
     print(f"{base}: index 90° at 15 °/s: read-back peak {np.degrees(peak):.5f} °/s, gyro plateau "
           f"{np.degrees(gyro_rate):.4f} °/s")
+
+
+def test_index_turns_the_way_the_sequence_says_with_a_relative_move(tmp_path, start_lab):
+    # -270°: an absolute move to the same angle would take the short way, +90°
+    path = hil_yaml(tmp_path, "hil")
+    truth = replace(draw_unit(SPEC, 2), sample_rate_hz=FS)
+    lab = start_lab(path, truth=truth, seed=3)
+    step, df, wz = _index_run(lab, path, truth, 60.0, np.radians(-270.0))
+    assert ("position_relative", {"delta_deg": "-270.00000"}) in [(k, f) for _, k, f in lab.table_log]
+    # the gyro integrates the turn to -270° (the short way would give +90°); 0.1° covers Earth rate
+    # over the 5.5 s step (0.015°), ARW (0.2 °/sqrt(h): 0.007°), the settle tolerance (0.005°) and the
+    # sampled ramps of the trapezoid
+    turned = np.degrees(np.sum(wz) / FS)
+    assert turned == pytest.approx(-270.0, abs=0.1), turned
+    assert np.all(np.degrees(wz[np.abs(wz) > np.radians(30.0)]) < 0)
 
 
 def test_index_rate_without_a_rate_command_falls_back_with_a_warning(tmp_path, start_lab, caplog):

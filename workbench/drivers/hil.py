@@ -290,18 +290,19 @@ class HilLab:
         self._queue = self._queue[n:]
         return np.concatenate([take, np.full(n - len(take), self._hold)])
 
-    def _plan(self, target_angle: float | None, target_rate: float) -> None:
-        """Replace the pending motion: decelerate / accelerate, or a rest-to-rest move to an angle."""
+    def _plan(self, target_angle: float | None, target_rate: float, turn: float | None = None) -> None:
+        """Replace the pending motion: decelerate / accelerate, or a rest-to-rest move to an angle
+        (the shortest way) or by ``turn`` rad (signed)."""
         tt, st = self.cfg.turntable, self.sim.state
         r0 = st.table_rate
-        if target_angle is None:
+        if target_angle is None and turn is None:
             self._queue = ramp_profile(r0, target_rate, tt.max_accel, self.fs) if r0 != target_rate else np.zeros(0)
             self._hold = target_rate
             return
         decel = ramp_profile(r0, 0.0, tt.max_accel, self.fs) if r0 != 0.0 else np.zeros(0)
         prev = np.concatenate([[r0], decel[:-1]])
         after = st.table_angle + float(np.sum(0.5 * (prev + decel)) / self.fs)
-        delta = wrap_pi(target_angle - after)
+        delta = turn if turn is not None else wrap_pi(target_angle - after)
         move = move_profile(delta, self._pos_rate, self._pos_accel, self.fs) if abs(delta) > 1e-12 else np.zeros(0)
         self._queue, self._hold = np.concatenate([decel, move]), 0.0
         self._new_error = True
@@ -419,7 +420,7 @@ class HilLab:
         self.table_log.append((st.sample / self.fs, key, dict(f)))
         if key == "stop":
             self._plan(None, 0.0)
-        elif key in ("position", "position_rate", "position_accel"):
+        elif key in ("position", "position_rate", "position_accel", "position_relative"):
             rate = np.radians(float(f["rate_dps"])) if "rate_dps" in f else self._pos_rate
             accel = np.radians(float(f["accel_dps2"])) if "accel_dps2" in f else self._pos_accel
             if refuse or not (0 < rate <= tt.max_rate * (1 + 1e-6) and 0 < accel <= tt.max_accel * (1 + 1e-6)):
@@ -428,6 +429,8 @@ class HilLab:
             self._pos_rate, self._pos_accel = rate, accel
             if key == "position":
                 self._plan(np.radians(float(f["angle_deg"])), 0.0)
+            elif key == "position_relative":
+                self._plan(None, 0.0, turn=np.radians(float(f["delta_deg"])))
         elif key == "rate":
             rate = np.radians(float(f["rate_dps"]))
             if refuse or abs(rate) > tt.max_rate * (1 + 1e-6):

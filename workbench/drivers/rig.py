@@ -143,6 +143,8 @@ class RealRig:
         rates = sorted({round(abs(p.table_rate), 12) for p in plan if p.kind == "index"})
         for rate in [self.positioning_rate, *rates]:
             self.table.position_commands(0.0, rate, accel)  # a template that does not format fails before moving
+        if rates and self.table.turns_relative:
+            self.table.position_commands(0.0, rates[0], accel, relative=True)
         if rates and not self.table.sends_position_rate:
             log.warning("%s: no 'position_rate' in table_controller.commands (nor {rate_dps} in 'position'): index "
                         "steps run at the controller's own slew rate, not at %s °/s", source,
@@ -228,7 +230,10 @@ class RealRig:
         extra = dict(p.extra)
         if p.kind == "index":
             target = p.table_angle + p.extra["index_angle"]
-            self.table.goto(target, abs(p.table_rate), self.config.turntable.max_accel)
+            if self.table.turns_relative:  # the sequence's direction, not the controller's shortest way
+                self.table.turn_by(p.extra["index_angle"], abs(p.table_rate), self.config.turntable.max_accel)
+            else:
+                self.table.goto(target, abs(p.table_rate), self.config.turntable.max_accel)
             parts.append(self._wait_settled(target, 0.0, index))
             extra["index_rate_sent"] = self.table.sends_position_rate  # False: the controller's own slew rate
         elif p.kind == "soak":

@@ -14,7 +14,9 @@ A position move carries its rate (and acceleration) limit when the command set h
 send it: the ``position_rate`` / ``position_accel`` commands (position-mode limits, sent
 before the ``position`` command), or ``{rate_dps}`` / ``{accel_dps2}`` fields in the
 ``position`` command itself (``"MOVE {angle_deg:.4f},{rate_dps:.4f}"``);
-:attr:`VisaTurntable.sends_position_rate` tells which.
+:attr:`VisaTurntable.sends_position_rate` tells which. An absolute move takes the controller's
+way round (usually the shortest); with a ``position_relative`` command (field ``{delta_deg}``,
+signed) an index turns by its angle in its direction (:meth:`VisaTurntable.turn_by`).
 
 Every setting command is followed by the ``error`` query (when configured): a reply not
 matching ``replies.no_error`` is a refused setpoint. Any reply matching
@@ -43,6 +45,7 @@ DEFAULT_COMMANDS = {
     "position": "POS:COMM {angle_deg:.5f}",  # position mode: go to an absolute angle
     "position_rate": None,  # position-mode rate limit, sent before `position`: "POS:RATE {rate_dps:.5f}"
     "position_accel": None,  # position-mode acceleration limit, sent before `position`: "POS:ACC {accel_dps2:.5f}"
+    "position_relative": None,  # a signed relative move (an index turns the way the sequence says): "POS:INCR {delta_deg:.5f}"
     "rate": "RATE:COMM {rate_dps:.5f}",  # rate mode: turn at a constant rate
     "stop": "STOP",  # decelerate to rest and hold
     "read_angle": "POS?",  # reply: degrees
@@ -138,17 +141,25 @@ class VisaTurntable:
         """Whether a position move can carry an acceleration limit (``position_accel`` or ``{accel_dps2}``)."""
         return bool(self.commands.get("position_accel")) or self._uses("position", "accel_dps2")
 
-    def position_commands(self, angle: float, rate: float | None = None, accel: float | None = None) -> list[str]:
-        """The command strings of :meth:`goto` in the order they are sent (checks the templates, sends nothing)."""
-        f = {"angle_deg": float(np.degrees(np.mod(angle, 2 * np.pi))),
-             "rate_dps": None if rate is None else float(np.degrees(abs(rate))),
+    @property
+    def turns_relative(self) -> bool:
+        """Whether the command set has a signed relative move (``position_relative``)."""
+        return bool(self.commands.get("position_relative"))
+
+    def position_commands(self, angle: float, rate: float | None = None, accel: float | None = None,
+                          relative: bool = False) -> list[str]:
+        """The command strings of :meth:`goto` (``relative``: of :meth:`turn_by`, ``angle`` the signed
+        turn) in the order they are sent (checks the templates, sends nothing)."""
+        f = {"rate_dps": None if rate is None else float(np.degrees(abs(rate))),
              "accel_dps2": None if accel is None else float(np.degrees(abs(accel)))}
         out = []
         if f["rate_dps"] is not None and self.commands.get("position_rate"):
             out.append(self._command("position_rate", rate_dps=f["rate_dps"]))
         if f["accel_dps2"] is not None and self.commands.get("position_accel"):
             out.append(self._command("position_accel", accel_dps2=f["accel_dps2"]))
-        return out + [self._command("position", **f)]
+        if relative:
+            return out + [self._command("position_relative", delta_deg=float(np.degrees(angle)), **f)]
+        return out + [self._command("position", angle_deg=float(np.degrees(np.mod(angle, 2 * np.pi))), **f)]
 
     def _io(self, command: str, reply: bool) -> str:
         tries, reopened = 0, False
@@ -227,6 +238,12 @@ class VisaTurntable:
         controller moves at its own slew rate. A ``position`` command with ``{rate_dps}`` needs ``rate``.
         """
         for command in self.position_commands(angle, rate, accel):
+            self._send(command)
+
+    def turn_by(self, delta: float, rate: float | None = None, accel: float | None = None) -> None:
+        """Position mode: turn by ``delta`` rad (signed, positive clockwise from above) with the
+        ``position_relative`` command; ``rate`` and ``accel`` as in :meth:`goto`."""
+        for command in self.position_commands(delta, rate, accel, relative=True):
             self._send(command)
 
     def spin(self, rate: float) -> None:
