@@ -55,7 +55,7 @@ base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
 t0 = time.perf_counter()
 out = analyze_one("allan", sys.argv[1])
 seconds = time.perf_counter() - t0
-cal = json.loads(out["calibration"]) if out["ok"] else None
+cal = out["calibration"].to_dict() if out["ok"] else None
 print(json.dumps({"ok": out["ok"], "error": out.get("error"), "seconds": seconds, "import_rss_kib": base,
                   "peak_rss_kib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss,
                   "noise": None if cal is None else cal["noise"]}))

@@ -3,15 +3,18 @@
 SQLAlchemy 2 over any URL; the embedded default is SQLite at ``./workbench.db``
 (``--db`` / ``WORKBENCH_DB`` override it). A stored calibration set is never modified: a new
 calibration of a unit is a new version (1, 2, ... per serial). Every write is one
-transaction, so a failed or interrupted write leaves the store as it was. SQLite writers
+transaction (or part of one ``Store.batch()``), so a failed or interrupted write leaves the
+store as it was. SQLite writers
 take the database lock up front (``BEGIN IMMEDIATE``) so concurrent processes queue
 instead of failing mid-transaction.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
+import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -136,6 +139,7 @@ class Store:
                 raise StoreError(f"store {self.url}: folder {Path(db).parent} does not exist")
             _sqlite_immediate(self.engine)
         self._sessions = sessionmaker(self.engine, expire_on_commit=False)
+        self._batch = threading.local()  # .db: the open transaction of batch() in this thread
         if create:
             self._create_schema()
 
@@ -153,7 +157,13 @@ class Store:
 
     @contextmanager
     def transaction(self) -> Iterator[Session]:
-        """One all-or-nothing transaction; errors become StoreError naming the store."""
+        """One all-or-nothing transaction; errors become StoreError naming the store.
+
+        Inside :meth:`batch` (same thread) this is the batch's transaction.
+        """
+        if self._in_batch():
+            yield self._batch.db
+            return
         db = self._sessions()
         try:
             with db.begin():
@@ -164,6 +174,30 @@ class Store:
             raise StoreError(f"store {self.url}: {str(exc.orig)[:160]}") from None
         finally:
             db.close()
+
+    @contextmanager
+    def batch(self) -> Iterator[None]:
+        """Make the writes inside one transaction (one commit for many small writes), all or nothing.
+
+        A version conflict with another writer is not retried inside: the whole batch is rolled
+        back and raises StoreError, and the caller writes the items again (one by one).
+        """
+        if self._in_batch():
+            yield
+            return
+        try:
+            with self.transaction() as db:
+                self._batch.db = db
+                try:
+                    yield
+                finally:
+                    self._batch.db = None
+        except IntegrityError as exc:
+            raise StoreError(f"store {self.url}: batch rolled back, another writer conflicts "
+                             f"({str(exc.orig).splitlines()[0][:120]})") from None
+
+    def _in_batch(self) -> bool:
+        return getattr(self._batch, "db", None) is not None
 
     def _ensure_unit(self, db: Session, serial: str, model: str) -> None:
         row = db.get(UnitRow, serial)
@@ -189,6 +223,8 @@ class Store:
                                   body=body))
                 return version
             except IntegrityError:
+                if self._in_batch():
+                    raise  # batch() rolls back and reports; its caller writes again
                 time.sleep(0.05 * (attempt + 1))  # another writer took this version number
         raise StoreError(f"store {self.url}: could not allocate a version for {calset.unit.serial}")
 
@@ -264,6 +300,7 @@ class Store:
     def add_result(self, procedure: str, session_id: str, serial: str, result: dict,
                    calset: CalibrationSet | None = None) -> int:
         """Store an analysis result (and its calibration set, in the same transaction)."""
+        body = None if calset is None else calset.to_json()  # validates; serialised once for body and hash
         for attempt in range(20):
             try:
                 with self.transaction() as db:
@@ -273,7 +310,7 @@ class Store:
                                              .where(SetRow.serial == calset.unit.serial)) or 0) + 1
                         db.add(SetRow(id=calset.id, serial=calset.unit.serial, version=version,
                                       created=calset.created, procedures=",".join(calset.provenance.procedures),
-                                      sha256=calset.sha256(), body=calset.to_json()))
+                                      sha256=hashlib.sha256(body.encode()).hexdigest(), body=body))
                     row = ResultRow(procedure=procedure, session_id=session_id, serial=serial,
                                     calibration_id=calset.id if calset else None, created=_now(),
                                     body=json.dumps(result))
@@ -281,6 +318,8 @@ class Store:
                     db.flush()
                     return row.id
             except IntegrityError:
+                if self._in_batch():
+                    raise
                 time.sleep(0.05 * (attempt + 1))
         raise StoreError(f"store {self.url}: could not store the result of {procedure}")
 

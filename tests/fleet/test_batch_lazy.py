@@ -1,7 +1,5 @@
 """Batch workers load an Allan session lazily and stream it: same noise block as the eager path."""
 
-import json
-
 import numpy as np
 import pytest
 
@@ -32,7 +30,7 @@ def test_lazy_worker_equals_eager_analysis(allan_dir, monkeypatch):
     outcome = analyze_one("allan", str(allan_dir))
     assert outcome["ok"], outcome.get("error")
     assert calls == [True]
-    lazy = json.loads(outcome["calibration"])["noise"]
+    lazy = outcome["calibration"].to_dict()["noise"]
     eager = registry.procedure("allan").analyze(real(allan_dir)).calibration.noise
     for triad in ("gyro", "accel"):
         assert set(lazy[triad]) == set(eager[triad])

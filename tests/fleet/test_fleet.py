@@ -1,10 +1,13 @@
+import dataclasses
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from workbench.cli import main
-from workbench.fleet.batch import cluster_client, run_batch
+from workbench.fleet import batch
+from workbench.fleet.batch import cluster_client, run_batch, store_outcomes
 from workbench.fleet.simulate import simulate_fleet
 from workbench.errors import WorkbenchError
 from workbench.store import Store
@@ -16,27 +19,53 @@ def fleet(tmp_path_factory):
     return simulate_fleet("industrial_mems", 4, "multiposition", out, seed0=11, options={"dwell_s": 10.0})
 
 
-def _coefficients(outcome):
-    cal = json.loads(outcome["calibration"])
-    return {t: (cal[t]["bias"], cal[t]["scale_misalignment"]) for t in ("accel", "gyro") if t in cal}
+def _numbers(outcome):
+    """Every number of the result and the set; only the set's id and creation time are per analysis."""
+    cal = {k: v for k, v in outcome["calibration"].to_dict().items() if k not in ("id", "created")}
+    return {k: v for k, v in outcome["result"].items() if k != "calibration_id"}, cal
 
 
-def test_batch_on_local_cluster_matches_serial_and_isolates_a_bad_session(fleet, tmp_path):
+def test_batch_on_local_cluster_matches_serial_and_isolates_a_bad_session(fleet, tmp_path, monkeypatch):
     bad = tmp_path / "bad"
     bad.mkdir()
     (bad / "session.json").write_text("{broken")
-    dirs = [fleet[0], fleet[1], bad, fleet[2], fleet[3]]
-    serial = run_batch("multiposition", dirs, None, None)
+    crash = tmp_path / "crash"  # a task that raises out of the work function (as a dead worker does)
+    dirs = [fleet[0], fleet[1], bad, crash, fleet[2], fleet[3]]
+    serial = run_batch("multiposition", [d for d in dirs if d != crash], None, None)
+    real = batch.analyze_one
+
+    def analyze_or_raise(procedure, session_dir, options=None):
+        if session_dir.endswith("crash"):
+            raise RuntimeError("worker lost")
+        return real(procedure, session_dir, options)
+
+    monkeypatch.setattr(batch, "analyze_one", analyze_or_raise)  # shipped to the workers by value
     store = Store(f"sqlite:///{tmp_path}/w.db")
     with cluster_client("local", workers=2) as client:
         assert all(addr.startswith("tcp://127.0.0.1") for addr in client.scheduler_info()["workers"])
         parallel = run_batch("multiposition", dirs, client, store)
-    assert len(parallel.failures) == 1 and "bad" in parallel.failures[0]["session_dir"]
-    assert "not valid JSON" in parallel.failures[0]["error"]
+    errors = {Path(o["session_dir"]).name: o["error"] for o in parallel.failures}
+    assert set(errors) == {"bad", "crash"} and len(parallel.succeeded) == 4
+    assert "not valid JSON" in errors["bad"] and errors["crash"] == "RuntimeError: worker lost"
     by_dir = {o["session_dir"]: o for o in serial.succeeded}
     for o in parallel.succeeded:  # the same function on the workers: identical numbers
-        assert _coefficients(o) == _coefficients(by_dir[o["session_dir"]])
+        assert _numbers(o) == _numbers(by_dir[o["session_dir"]])
     assert len(store.list_results("multiposition")) == 4 and len(store.list_sets()) == 4
+
+
+def test_store_batch_isolates_a_write_that_fails(fleet, tmp_path):
+    """Outcomes written together share one transaction; a set the store refuses rolls it back,
+    then each is written alone (session record and result together) so only that one fails and
+    nothing of it is stored."""
+    outcomes = run_batch("multiposition", fleet[:3], None, None).outcomes
+    outcomes[1]["calibration"] = dataclasses.replace(outcomes[1]["calibration"], notes={"x": float("nan")})
+    store = Store(f"sqlite:///{tmp_path}/w.db")
+    store_outcomes(store, outcomes)
+    assert [o["ok"] for o in outcomes] == [True, False, True]
+    assert "NaN or infinite value" in outcomes[1]["error"]
+    good = {outcomes[0]["session"]["id"], outcomes[2]["session"]["id"]}
+    assert {r["session_id"] for r in store.list_results("multiposition")} == good
+    assert {s.id for s in store.list_sessions()} == good and len(store.list_sets()) == 2
 
 
 def test_unreachable_scheduler_is_a_clear_error():

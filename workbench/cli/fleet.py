@@ -22,7 +22,9 @@ def batch(procedure: str = typer.Argument(..., metavar="PROCEDURE"),
           no_store: bool = typer.Option(False, "--no-store")) -> None:
     """Analyse many sessions in parallel on Dask; results stream into the store; failures are isolated."""
     from workbench.fleet.batch import cluster_client, run_batch
+    from workbench.registry import procedure as get_procedure
 
+    get_procedure(procedure)  # an unknown procedure fails before a cluster starts
     store = None if no_store else Store()
     opts = parse_options(option)
     bar = Progress(TextColumn("[bold]batch"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
@@ -35,10 +37,10 @@ def batch(procedure: str = typer.Argument(..., metavar="PROCEDURE"),
                        + Path(outcome["session_dir"]).name)
 
         if scheduler == "serial":
-            report = run_batch(procedure, session_dirs, None, store, opts, progress)
+            report = run_batch(procedure, session_dirs, None, store, opts, progress, keep_results=False)
         else:
             with cluster_client(scheduler, workers, dashboard) as client:
-                report = run_batch(procedure, session_dirs, client, store, opts, progress)
+                report = run_batch(procedure, session_dirs, client, store, opts, progress, keep_results=False)
     out.print(f"{len(report.succeeded)} analysed, {len(report.failures)} failed"
               f"{'; results stored in ' + store.url if store else ''}")
     for f in report.failures:

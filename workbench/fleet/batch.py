@@ -2,7 +2,8 @@
 
 The work unit is :func:`analyze_one`, the same analysis the single-session path runs
 (``procedure.analyze`` plus provenance); it never raises, so a bad session is reported and the
-rest go on. Results stream into the store from the submitting process as they complete.
+rest go on. Results stream into the store from the submitting process as they complete, the
+ones that arrive together in one transaction.
 :func:`cluster_client` makes a ``LocalCluster`` on 127.0.0.1 (dashboard off unless asked) or
 connects to a running scheduler, failing fast when the address does not answer.
 """
@@ -11,19 +12,20 @@ from __future__ import annotations
 
 import json
 import logging
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from workbench.calset import CalibrationSet
 from workbench.errors import WorkbenchError
 
 
 def analyze_one(procedure: str, session_dir: str, options: Mapping | None = None) -> dict:
-    """Analyse one session; returns a JSON-ready outcome (``ok``, ``error``, ``result``, ``calibration``).
+    """Analyse one session: the outcome dict ``session_dir``, ``procedure``, ``ok``, and ``error`` or
+    ``result`` (JSON-ready), ``calibration`` (a validated :class:`CalibrationSet` or None) and ``session``.
 
-    Runs in a worker process. Exceptions become ``ok: False`` with a one-line ``error``.
+    Runs in a worker process. Exceptions become ``ok: False`` with a one-line ``error``. The set
+    travels as an object: the store serialises it once, in the submitting process.
     """
     from workbench.procedure import result_json, with_session_provenance
     from workbench.registry import procedure as get_procedure
@@ -35,9 +37,10 @@ def analyze_one(procedure: str, session_dir: str, options: Mapping | None = None
         # procedures that stream long records (LAZY_OK) get the samples left on disk: bounded memory
         session = load_session(session_dir, lazy=bool(getattr(proc, "LAZY_OK", False)))
         result = with_session_provenance(proc.analyze(session, **dict(options or {})), session)
+        if result.calibration is not None:
+            result.calibration.to_dict()  # validates here: an invalid set fails this session, store or not
         outcome.update(
-            ok=True, result=json.loads(result_json(result)),
-            calibration=None if result.calibration is None else result.calibration.to_json(),
+            ok=True, result=json.loads(result_json(result)), calibration=result.calibration,
             session={"id": session.id, "serial": session.unit.serial, "model": session.unit.model,
                      "path": str(session.path), "sha256": session.samples_sha256() or "",
                      "n_steps": len(session.steps)})
@@ -64,22 +67,79 @@ class BatchReport:
 
 
 def store_outcome(store, outcome: Mapping) -> None:
-    """Write one successful outcome (session record, result and its calibration set) to the store."""
+    """Write one successful outcome (session record, result and its calibration set) in one transaction."""
     s = outcome["session"]
-    store.add_session(s["id"], s["serial"], s["model"], outcome["procedure"], s["path"], s["sha256"], s["n_steps"])
-    cal = None if outcome["calibration"] is None else CalibrationSet.from_json(outcome["calibration"])
-    store.add_result(outcome["procedure"], s["id"], s["serial"], outcome["result"], cal)
+    with store.batch():
+        store.add_session(s["id"], s["serial"], s["model"], outcome["procedure"], s["path"], s["sha256"],
+                          s["n_steps"])
+        store.add_result(outcome["procedure"], s["id"], s["serial"], outcome["result"], outcome["calibration"])
+
+
+def store_outcomes(store, outcomes: Sequence[dict]) -> None:
+    """Write the successful ``outcomes`` in one store transaction (one commit for all).
+
+    If that transaction fails (an invalid set, a conflict with another writer), each outcome is
+    written again on its own, so only the bad one is marked failed (``ok: False``, ``error``).
+    """
+    ok = [o for o in outcomes if o["ok"]]
+    if len(ok) > 1:  # (one outcome is one transaction already)
+        try:
+            with store.batch():
+                for o in ok:
+                    store_outcome(store, o)
+            return
+        except WorkbenchError:
+            pass  # rolled back as a whole: isolate the failure below
+    for o in ok:
+        try:
+            store_outcome(store, o)
+        except WorkbenchError as exc:
+            o.update(ok=False, error=str(exc))
+
+
+def warm_up(client, procedure: str) -> dict[str, float]:
+    """Import ``procedure`` and the libraries its analysis needs on every worker; seconds per worker.
+
+    Optional: the first task on a worker would pay the same import. It lets the start-up be
+    timed apart from the analysis, and starts no task.
+    """
+    return client.run(_import_procedure, procedure)
+
+
+def _import_procedure(procedure: str) -> float:
+    import time
+
+    t0 = time.perf_counter()
+    from workbench.registry import procedure as get_procedure
+
+    get_procedure(procedure)  # the procedure module imports the session and analysis libraries
+    return time.perf_counter() - t0
+
+
+# environment of a local worker process, set before it starts (None: not set, the library default)
+WORKER_ENV = {"OMP_NUM_THREADS": 1, "MKL_NUM_THREADS": 1, "OPENBLAS_NUM_THREADS": 1, "MALLOC_TRIM_THRESHOLD_": None}
 
 
 @contextmanager
 def cluster_client(scheduler: str = "local", workers: int = 2, dashboard: bool = False) -> Iterator:
-    """A ``distributed.Client``: a LocalCluster on 127.0.0.1, or the scheduler at ``tcp://HOST:PORT``."""
+    """A ``distributed.Client``: a LocalCluster on 127.0.0.1, or the scheduler at ``tcp://HOST:PORT``.
+
+    The local cluster runs one single-threaded process per worker (the analyses hold the GIL in
+    pandas/Python code) with OMP/MKL/OPENBLAS_NUM_THREADS=1, so numeric libraries do not
+    oversubscribe the cores, and with glibc's default allocator settings: Dask's default
+    ``MALLOC_TRIM_THRESHOLD_=65536`` also freezes the mmap threshold at 128 KiB, so every array of
+    a session is a fresh mmap, page-faulted in (a multi-position analysis: 4-6x the page faults,
+    ~15 % more CPU).
+    """
+    import dask
     from distributed import Client, LocalCluster
 
     if scheduler == "local":
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
-                               dashboard_address="127.0.0.1:8787" if dashboard else None,
-                               silence_logs=logging.ERROR)
+        env = {f"distributed.nanny.pre-spawn-environ.{k}": v for k, v in WORKER_ENV.items()}
+        with dask.config.set(env):  # read when the nannies are made; a restarted worker keeps it
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                   dashboard_address="127.0.0.1:8787" if dashboard else None,
+                                   silence_logs=logging.ERROR)
         client = Client(cluster)
         try:
             yield client
@@ -99,12 +159,21 @@ def cluster_client(scheduler: str = "local", workers: int = 2, dashboard: bool =
         client.close()
 
 
+STORE_BATCH = 32  # outcomes per store transaction at most
+
+
 def run_batch(procedure: str, session_dirs: Iterable[str | Path], client=None, store=None,
-              options: Mapping | None = None, progress: Callable[[int, int, dict], None] | None = None) -> BatchReport:
+              options: Mapping | None = None, progress: Callable[[int, int, dict], None] | None = None,
+              keep_results: bool = True) -> BatchReport:
     """Analyse every session; on ``client`` (Dask) in parallel, else serially in this process.
 
-    Each successful outcome goes to ``store`` as soon as it completes; failures are reported
-    in the returned :class:`BatchReport` and the batch continues.
+    Outcomes go to ``store`` as they complete: serially one transaction each; from the cluster,
+    the outcomes that arrived together (while the previous ones were written) share one
+    transaction of at most ``STORE_BATCH``. Failures (an analysis error, a worker that died, a
+    store write refused) are reported in the returned :class:`BatchReport` and the batch
+    continues. A result leaves its worker as soon as it is fetched; with ``keep_results=False``
+    the report keeps only ``session_dir``, ``procedure``, ``ok`` and ``error`` of each outcome, so the
+    submitting process's memory does not grow with the results either.
     """
     from workbench.registry import procedure as get_procedure
 
@@ -112,23 +181,37 @@ def run_batch(procedure: str, session_dirs: Iterable[str | Path], client=None, s
     dirs = [str(d) for d in session_dirs]
     report = BatchReport()
 
-    def handle(outcome: dict) -> None:
-        if outcome["ok"] and store is not None:
-            try:
-                store_outcome(store, outcome)
-            except WorkbenchError as exc:
-                outcome.update(ok=False, error=str(exc))
-        report.outcomes.append(outcome)
-        if progress is not None:
-            progress(len(report.outcomes), len(dirs), outcome)
+    def handle(outcomes: list[dict]) -> None:
+        if store is not None:
+            store_outcomes(store, outcomes)
+        for outcome in outcomes:
+            report.outcomes.append(outcome if keep_results else
+                                   {k: outcome[k] for k in ("session_dir", "procedure", "ok", "error") if k in outcome})
+            if progress is not None:
+                progress(len(report.outcomes), len(dirs), outcome)
 
     if client is None:
         for d in dirs:
-            handle(analyze_one(procedure, d, options))
+            handle([analyze_one(procedure, d, options)])
         return report
     from distributed import as_completed
 
-    futures = [client.submit(analyze_one, procedure, d, dict(options or {}), pure=False) for d in dirs]
-    for fut in as_completed(futures):
-        handle(fut.result())
+    futures = client.map(analyze_one, [procedure] * len(dirs), dirs, options=dict(options or {}), pure=False)
+    dir_of = {f.key: d for f, d in zip(futures, dirs)}
+    completed = as_completed(futures, with_results=True, raise_errors=False)
+    del futures  # as_completed holds the only references: a result is released once fetched
+    for ready in completed.batches():
+        outcomes = [result if f.status == "finished" else
+                    _lost(procedure, dir_of[f.key], result[1] if f.status == "error" else result)
+                    for f, result in ready]
+        del ready
+        for i in range(0, len(outcomes), STORE_BATCH):
+            handle(outcomes[i:i + STORE_BATCH])
     return report
+
+
+def _lost(procedure: str, session_dir: str, exc: BaseException) -> dict:
+    """The outcome of a task that produced no result (it raised, its worker died, or it was cancelled)."""
+    message = str(exc).splitlines()[0] if str(exc) else ""
+    return {"session_dir": session_dir, "procedure": procedure, "ok": False,
+            "error": f"{type(exc).__name__}: {message}"[:300]}
