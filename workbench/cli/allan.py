@@ -9,16 +9,19 @@ file of rate columns in SI (rad/s, m/s^2) with a time column ``t``/``time`` (s) 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
 import typer
 from rich.table import Table
 
-from workbench.analysis.allan_fit import TERMS, AllanAnalysis, analyze_record
 from workbench.cli import out
 from workbench.errors import AnalysisError, SessionError
 from workbench.session import ACCEL, GYRO, load_session, read_samples
+
+if TYPE_CHECKING:  # the fit (scipy.stats, cvxpy) is imported when a command runs, not with the CLI
+    from workbench.analysis.allan_fit import AllanAnalysis
 
 TIME_COLUMNS = ("t", "time")
 RATE_TOLERANCE = 0.01  # relative spread of sample intervals accepted as a constant rate
@@ -100,6 +103,7 @@ def curves_frame(an: AllanAnalysis) -> pd.DataFrame:
 
 
 def _print_terms(an: AllanAnalysis) -> None:
+    from workbench.analysis.allan_fit import TERMS
     from workbench.plots.allan import term_text
 
     unit_note = {"gyro": "gyro, rad/s in", "accel": "accel, m/s^2 in"}.get(an.quantity, "SI in")
@@ -141,6 +145,8 @@ def register(app: typer.Typer) -> None:
         if stream:
             an = _streamed(source, cols, rate, taus)
         else:
+            from workbench.analysis.allan_fit import analyze_record
+
             y, fs, cols, label = load_record(source, cols, rate)
             an = analyze_record(y, fs, cols, quantity_of(cols), taus, gap_policy, label)
         for w in an.warnings:
