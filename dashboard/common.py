@@ -147,21 +147,39 @@ def procedure_picker(label: str = "Procedure", key: str = "procedure") -> Module
     return procs[name]
 
 
+# unit suffixes of names (longest first) -> the lab unit shown in labels and column headers
+OPTION_UNITS = (("_deg_h_sqrt_h", "°/h/√h"), ("_m_s_h_sqrt_h", "m/s/h/√h"), ("_c_per_min", "°C/min"),
+                ("_deg_h", "°/h"), ("_deg_s", "°/s"), ("_dps2", "°/s²"), ("_dps", "°/s"), ("_deg", "°"),
+                ("_mrad", "mrad"), ("_mg", "mg"), ("_ppm", "ppm"), ("_ut", "µT"), ("_hz", "Hz"), ("_s", "s"),
+                ("_c", "°C"))
+
+
+def lab_label(name: str) -> str:
+    """A snake-case name with a unit suffix (an option, a table column) for people:
+    ``'gyro_bias_instability_deg_h'`` -> ``'gyro bias instability (°/h)'``."""
+    for suffix, unit in OPTION_UNITS:
+        if name.endswith(suffix) and len(name) > len(suffix):
+            return f"{name[:-len(suffix)].replace('_', ' ')} ({unit})"
+    return name.replace("_", " ")
+
+
 def option_inputs(proc: ModuleType, key: str) -> dict:
-    """Widgets for the procedure's ``DEFAULTS`` (numbers, flags, text; lists and unset values as JSON)."""
+    """Widgets for the procedure's ``DEFAULTS`` (numbers, flags, text; lists and unset values as JSON),
+    labelled in lab units, the option's command-line name in the help."""
     options: dict = {}
     for name, default in dict(getattr(proc, "DEFAULTS", {})).items():
         wkey = f"{key}.{proc.NAME}.{name}"
+        label, hint = lab_label(name), f"`workbench run {proc.NAME} -o {name}=...`"
         if isinstance(default, bool):
-            options[name] = st.checkbox(name, value=default, key=wkey)
+            options[name] = st.checkbox(label, value=default, key=wkey, help=hint)
         elif isinstance(default, int):
-            options[name] = int(st.number_input(name, value=default, step=1, key=wkey))
+            options[name] = int(st.number_input(label, value=default, step=1, key=wkey, help=hint))
         elif isinstance(default, float):
-            options[name] = float(st.number_input(name, value=default, format="%g", key=wkey))
+            options[name] = float(st.number_input(label, value=default, format="%g", key=wkey, help=hint))
         elif isinstance(default, str):
-            options[name] = st.text_input(name, value=default, key=wkey)
+            options[name] = st.text_input(label, value=default, key=wkey, help=hint)
         else:  # None (unset) or a list / dict: JSON text, empty = unset
-            text = st.text_input(name, value="" if default is None else json.dumps(default), key=wkey,
+            text = st.text_input(label, value="" if default is None else json.dumps(default), key=wkey, help=hint,
                                  placeholder="not set (JSON value)" if default is None else None)
             try:
                 options[name] = json.loads(text) if text.strip() else None
@@ -196,7 +214,7 @@ def show_sequence(seq: Any) -> None:
     c1, c2 = st.columns(2)
     c1.metric("Steps", len(table))
     c2.metric("Total time (rig time)", format_duration(float(seq.duration_s)))
-    st.dataframe(table, width="stretch", hide_index=True)
+    st.dataframe(table.rename(columns=lab_label), width="stretch", hide_index=True)
 
 
 # -- background runs -------------------------------------------------------------------

@@ -21,6 +21,8 @@ from pathlib import Path
 
 import pytest
 
+from dashboard.common import lab_label
+
 pytestmark = pytest.mark.e2e
 
 REPO = Path(__file__).resolve().parents[2]
@@ -154,7 +156,7 @@ def test_run_then_download_in_browser(server, browser_page):
     _select(page, "Procedure", proc)
     _select(page, "Unit grade", grade)
     for name, value in options.items():
-        field = page.get_by_label(name, exact=True)
+        field = page.get_by_label(lab_label(name), exact=True)  # e.g. "dwell (s)" for dwell_s
         field.fill(str(value))
         field.press("Enter")
         _settle(page)

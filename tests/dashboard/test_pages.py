@@ -441,3 +441,13 @@ def test_run_page_in_app_links_to_calibration_sets(fake_run):
     at.switch_page("dashboard/pages/20_run.py").run()
     assert not at.exception
     assert [link.proto.label for link in at.get("page_link")] == ["Calibration sets →"]
+
+
+def test_lab_labels_carry_the_lab_unit():
+    from dashboard.common import lab_label
+
+    assert lab_label("gyro_bias_instability_deg_h") == "gyro bias instability (°/h)"
+    assert lab_label("settle_tol_c_per_min") == "settle tol (°C/min)"
+    assert lab_label("rate_deg_s") == "rate (°/s)" and lab_label("dwell_s") == "dwell (s)"
+    assert lab_label("accel_rrw_m_s_h_sqrt_h") == "accel rrw (m/s/h/√h)"
+    assert lab_label("positions") == "positions" and lab_label("gap_policy") == "gap policy"
