@@ -21,11 +21,13 @@ _FACTORS = {
     "m/s^2/sqrt(Hz)": 1.0, "m/s/sqrt(h)": 1.0 / np.sqrt(HOUR), "ug/sqrt(Hz)": G0 * 1e-6,
     "rad/s^2/sqrt(Hz)": 1.0, "deg/h/sqrt(h)": DEG / HOUR / np.sqrt(HOUR),
     "m/s^3/sqrt(Hz)": 1.0, "m/s/h/sqrt(h)": 1.0 / HOUR / np.sqrt(HOUR),
+    "deg/h/h": DEG / HOUR / HOUR, "m/s^3": 1.0,
     "ut": 1.0, "uT": 1.0, "nT": 1e-3, "gauss": 100.0, "mgauss": 0.1, "T": 1e6,
     "ppm": 1e-6, "%": 1e-2, "1": 1.0,
 }
 LABELS = {"deg/sqrt(h)": "°/√h", "deg/h": "°/h", "deg/s": "°/s", "ug/sqrt(Hz)": "µg/√Hz", "ug": "µg",
-          "uT": "µT", "deg": "°", "m/s/sqrt(h)": "m/s/√h", "deg/h/sqrt(h)": "°/h/√h", "m/s/h/sqrt(h)": "m/s/h/√h"}
+          "uT": "µT", "deg": "°", "m/s/sqrt(h)": "m/s/√h", "deg/h/sqrt(h)": "°/h/√h", "m/s/h/sqrt(h)": "m/s/h/√h",
+          "deg/h/h": "°/h²", "m/s^3": "m/s³"}
 
 
 def factor(unit: str) -> float:

@@ -28,7 +28,6 @@ TERM_UNITS = {
               "rate_ramp": "m/s^3"},
 }
 TERM_LABELS = {"quantization": "Q", "white": "N", "bias_instability": "B", "rrw": "K", "rate_ramp": "R"}
-_EXTRA = {"deg/h/h": np.pi / 180 / 3600 / 3600, "m/s": 1.0, "m/s^3": 1.0}
 
 
 def term_text(quantity: str | None, term: str, value_si: float) -> str:
@@ -36,8 +35,7 @@ def term_text(quantity: str | None, term: str, value_si: float) -> str:
     unit = TERM_UNITS.get(quantity, {}).get(term)
     if unit is None or not np.isfinite(value_si):
         return f"{TERM_LABELS[term]} {value_si:.4g}" if np.isfinite(value_si) else f"{TERM_LABELS[term]} n/o"
-    f = _EXTRA.get(unit) or units.factor(unit)
-    return f"{TERM_LABELS[term]} {value_si / f:.3g} {units.label(unit)}"
+    return f"{TERM_LABELS[term]} {units.to_unit(value_si, unit):.3g} {units.label(unit)}"
 
 
 def plot_triads(analyses: Mapping[str, AllanAnalysis]) -> plt.Figure:
