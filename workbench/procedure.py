@@ -21,7 +21,7 @@ from workbench.session import Session
 
 
 def lab_option(procedure: str, options: Mapping, key: str, unit: str) -> np.ndarray | None:
-    """Option ``key`` given in the lab ``unit`` (a scalar or one value per axis) in SI; None if absent.
+    """Option ``key``, a magnitude given in the lab ``unit`` (a number >= 0 or one per axis), in SI; None if absent.
 
     E.g. ``lab_option("multiposition", o, "gyro_bias_instability_deg_h", "deg/h")`` -> rad/s.
     """
@@ -31,9 +31,12 @@ def lab_option(procedure: str, options: Mapping, key: str, unit: str) -> np.ndar
     if options.get(key) is None:
         return None
     try:
-        return np.asarray(options[key], float) * units.factor(unit)
+        value = np.asarray(options[key], float)
     except (TypeError, ValueError):
-        raise ProcedureError(f"{procedure}: {key}={options[key]!r} is not a number or a list of 3 numbers") from None
+        value = np.array([np.nan])
+    if value.size not in (1, 3) or value.ndim > 1 or not np.all(np.isfinite(value) & (value >= 0)):
+        raise ProcedureError(f"{procedure}: {key}={options[key]!r} is not a number >= 0 or a list of 3 ({unit})")
+    return value * units.factor(unit)
 
 
 @dataclass

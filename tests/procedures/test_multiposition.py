@@ -62,3 +62,10 @@ def test_analyze_outputs(spec):
     assert any("Earth rate" in line for line in result.summary)
     figs = multiposition.figures(result)
     assert set(figs) == {"accel_residuals", "gyro_residuals"}
+
+
+@pytest.mark.parametrize("value", ["abc", [8, 8], -3.0])
+def test_bad_bias_instability_option_names_it(spec, value):
+    session, _ = simulate(multiposition.sequence(spec, positions=6, dwell_s=2.0), spec, seed=4)
+    with pytest.raises(ProcedureError, match=r"multiposition: gyro_bias_instability_deg_h=.* \(deg/h\)"):
+        multiposition.analyze(session, gyro_bias_instability_deg_h=value)

@@ -469,7 +469,7 @@ def _static_noise(session: Session, stats: list[StepStats], triad: str, settle_s
         return noise
     b = np.asarray(bias_instability, float)
     if b.size not in (1, 3) or not np.all(b >= 0):
-        raise AnalysisError(f"{context}: bias_instability={bias_instability!r} must be >= 0 (scalar or 3 axes, SI)")
+        raise AnalysisError(f"{context}: bias_instability {b.ravel().tolist()} (SI) must be >= 0, one value or three")
     return noise.with_floor(np.sqrt(FLICKER_AVAR) * b.ravel())
 
 
