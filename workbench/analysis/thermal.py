@@ -473,6 +473,7 @@ def soak_points(session, triads=("gyro", "accel"), settle_tol_c_per_min: float =
     temp_all = session.samples["temp"].to_numpy(float)
     out: dict[str, list[SoakPoint]] = {t: [] for t in triads}
     warnings: list[str] = []
+    hidden: dict[str, list] = {t: [] for t in triads}  # per soak: step, hideable bias instability (3,), dwell s
     prev_temp = None
     for g in groups:
         soak_sel = _samples_of(session, [g.soak_step])
@@ -506,7 +507,7 @@ def soak_points(session, triads=("gyro", "accel"), settle_tol_c_per_min: float =
         for triad in triads:
             if triad == "accel":
                 fit = tt.fit_accel(session, steps=statics, position_sigma=position_sigma,
-                                   bias_instability=(bias_instability or {}).get("accel"))
+                                   bias_instability=(bias_instability or {}).get("accel"), warn_hidden_floor=False)
                 bias, bias_s = fit.bias, fit.bias_sigma
                 scale, scale_s = np.diag(fit.scale_misalignment), np.diag(fit.scale_misalignment_sigma)
             else:
@@ -514,11 +515,14 @@ def soak_points(session, triads=("gyro", "accel"), settle_tol_c_per_min: float =
                 m = None if rfit is None else np.where(np.isfinite(rfit.scale_misalignment_sigma),
                                                        rfit.scale_misalignment, 0.0)
                 fit = tt.fit_gyro_static(session, steps=statics, scale_misalignment=m,
-                                         bias_instability=(bias_instability or {}).get("gyro"))
+                                         bias_instability=(bias_instability or {}).get("gyro"),
+                                         warn_hidden_floor=False)
                 bias, bias_s = fit.bias, fit.bias_sigma
                 scale = np.full(3, np.nan) if rfit is None else np.diag(rfit.scale_misalignment)
                 scale_s = np.full(3, np.nan) if rfit is None else np.diag(rfit.scale_misalignment_sigma)
             warnings += [f"soak step {g.soak_step}: {w}" for w in fit.warnings]
+            hidden[triad].append((g.soak_step, np.array(fit.notes["hidden_bias_instability"], float),
+                                  min(session.step(i).duration for i in statics)))
             out[triad].append(SoakPoint(triad, g.soak_step, g.steps, g.setpoint_c, mean_t, rate, settle_time,
                                         direction,
                                         np.asarray(bias, float), np.asarray(bias_s, float),
@@ -529,6 +533,16 @@ def soak_points(session, triads=("gyro", "accel"), settle_tol_c_per_min: float =
         for i, p in enumerate(pts):
             if p.direction == 0 and i + 1 < len(pts) and pts[i + 1].direction != 0:
                 pts[i] = replace(p, direction=pts[i + 1].direction)
+    # one warning per triad for the soaks whose dwells could hide a bias instability (largest per axis)
+    for triad, per_soak in hidden.items():
+        steps = [step for step, b, _ in per_soak if np.isfinite(b).any()]
+        if steps:
+            with np.errstate(all="ignore"):
+                worst = np.nanmax(np.array([b for _, b, _ in per_soak]), axis=0)
+            what = "accelerometer fit" if triad == "accel" else "gyro static fit"
+            warnings += tt.hidden_floor_warning(worst, None, min(d for _, _, d in per_soak),
+                                                "mg" if triad == "accel" else "deg/h",
+                                                f"soak steps {', '.join(map(str, steps))}: {what}")
     return out, warnings
 
 

@@ -30,7 +30,8 @@ value (0), with a warning when they were requested. A position that does not fit
 (:func:`workbench.analysis.position_check.deleted_residual_statistics`) and named.
 
 Public: :class:`TriadFit`, :func:`fit_accel`, :func:`fit_gyro_static`, :func:`fit_gyro_rate`,
-:func:`between_step_variance`, :func:`bias_wander`.
+:func:`between_step_variance`, :func:`bias_wander`, :func:`hidden_bias_instability`,
+:func:`hidden_floor_warning`.
 """
 
 from __future__ import annotations
@@ -331,7 +332,7 @@ def _fit_with_misfits(build, stats: list[StepStats], y: np.ndarray, var: np.ndar
 
 def fit_accel(session: Session, steps: Sequence[int] | None = None, nonlinearity: str = "auto",
               settle_s: float = 1.0, position_sigma: float | str = 0.0,
-              bias_instability: np.ndarray | float | None = None) -> TriadFit:
+              bias_instability: np.ndarray | float | None = None, warn_hidden_floor: bool = True) -> TriadFit:
     """Accelerometer bias, ``M`` and nonlinearity from static positions (body frame, SI).
 
     ``steps``: indices of static steps (None = all static and soak steps). ``nonlinearity``:
@@ -353,7 +354,9 @@ def fit_accel(session: Session, steps: Sequence[int] | None = None, nonlinearity
     ``bias_instability`` (m/s^2, scalar or (3,)): the unit's bias instability ``B`` (IEEE 952,
     from its Allan characterisation); it sets a lower bound ``0.664 B`` on the bias-wander floor
     of the step means, for dwells too short to show it (see :func:`bias_wander`). Without it a
-    warning gives the largest ``B`` the dwells could hide when that would exceed the bias sigma.
+    warning (unless ``warn_hidden_floor`` is False: a caller summarising many fits) gives the
+    largest ``B`` the dwells could hide when that would exceed the bias sigma; it is also in
+    ``notes["hidden_bias_instability"]``.
     """
     if nonlinearity not in ("auto", "fit", "none"):
         raise AnalysisError(f"nonlinearity={nonlinearity!r}: expected 'auto', 'fit' or 'none'")
@@ -406,14 +409,15 @@ def fit_accel(session: Session, steps: Sequence[int] | None = None, nonlinearity
     warnings += w2
     between = between_step_variance(fit, position_var(tilt)[used])
     result = _with_bias_wander(_accel_result(fit), noise, between)
-    if bias_instability is None:
-        warnings += _hidden_floor(noise, result.bias_sigma, stats, session.sample_rate_hz, "mg", context)
+    hidden, w3 = _hidden_floor(noise, result, stats, session.sample_rate_hz, "mg", context, bias_instability,
+                               warn_hidden_floor)
+    warnings += w3
     comp = result.model().compensate(y)
     return replace(result, residuals=_residual_frame(stats, f, y, comp, position_var(tilt) * fit.scale, used),
                         outliers=tuple(stats[i].step.index for i in outliers), warnings=tuple(warnings),
                         chi2_reduced=fit.chi2 / fit.dof if fit.dof else float("nan"), dof=fit.dof,
                         notes={"gravity_m_s2": g, "positions": int(used.sum()), "position_sigma_rad": tilt,
-                               **_noise_notes(noise, between),
+                               **_noise_notes(noise, between, hidden),
                                "nonlinearity_axes": [AXES[j] for j in range(3) if nl_axes[j]]})
 
 
@@ -473,27 +477,44 @@ def _static_noise(session: Session, stats: list[StepStats], triad: str, settle_s
     return noise.with_floor(np.sqrt(FLICKER_AVAR) * b.ravel())
 
 
-def _hidden_floor(noise: MeanNoise, bias_sigma: np.ndarray, stats: list[StepStats], fs: float, unit: str,
-                  context: str) -> list[str]:
-    """A warning naming the axes where a bias instability the dwells cannot show (Allan floor under
-    :attr:`MeanNoise.floor_limit`) could exceed the reported bias sigma; [] if none."""
-    b_lim = noise.floor_limit / np.sqrt(FLICKER_AVAR)
+def hidden_bias_instability(noise: MeanNoise, bias_sigma: np.ndarray) -> np.ndarray:
+    """The largest bias instability ``B`` (3,) SI that the dwells cannot show (an Allan floor under
+    :attr:`MeanNoise.floor_limit`), on the axes where it would exceed ``bias_sigma``; NaN elsewhere."""
     hidden = (noise.floor == 0) & (noise.floor_limit > bias_sigma)
-    if not hidden.any():
+    return np.where(hidden, noise.floor_limit / np.sqrt(FLICKER_AVAR), np.nan)
+
+
+def hidden_floor_warning(hidden: np.ndarray, bias_sigma: np.ndarray | None, dwell_s: float, unit: str,
+                         context: str) -> list[str]:
+    """A warning naming the axes of :func:`hidden_bias_instability` (lab ``unit``; with the bias sigma
+    when given), [] when none."""
+    if not np.isfinite(hidden).any():
         return []
-    dwell = min(s.n for s in stats) / fs
-    axes = ", ".join(f"{AXES[j]} {units.fmt(b_lim[j], unit, 2)} (bias sigma {units.fmt(bias_sigma[j], unit, 2)})"
-                     for j in range(3) if hidden[j])
-    return [f"{context}: a bias instability up to {axes} would not show in {dwell:.3g}-s dwells: the bias sigma "
+    axes = ", ".join(f"{AXES[j]} {units.fmt(hidden[j], unit, 2)}"
+                     + ("" if bias_sigma is None else f" (bias sigma {units.fmt(bias_sigma[j], unit, 2)})")
+                     for j in range(3) if np.isfinite(hidden[j]))
+    return [f"{context}: a bias instability up to {axes} would not show in {dwell_s:.3g}-s dwells: the bias sigma "
             "does not include one; give the unit's bias instability (its Allan result) or dwell longer"]
 
 
-def _noise_notes(noise, between: np.ndarray | None = None) -> dict:
+def _hidden_floor(noise: MeanNoise, bias: TriadFit, stats: list[StepStats], fs: float, unit: str, context: str,
+                  bias_instability, warn: bool) -> tuple[np.ndarray, list[str]]:
+    """:func:`hidden_bias_instability` (all NaN when the unit's ``bias_instability`` was given) and,
+    if ``warn``, its warning."""
+    hidden = np.full(3, np.nan) if bias_instability is not None else hidden_bias_instability(noise, bias.bias_sigma)
+    dwell = min(s.n for s in stats) / fs
+    return hidden, hidden_floor_warning(hidden, bias.bias_sigma, dwell, unit, context) if warn else []
+
+
+def _noise_notes(noise, between: np.ndarray | None = None, hidden: np.ndarray | None = None) -> dict:
     """Noise model of the step means for ``notes``: white density (SI/√Hz), bias-wander floor (SI)
-    and, for static fits, the between-step deviation (SI, random effect)."""
+    and, for static fits, the between-step deviation (SI, random effect) and the bias instability
+    the dwells could hide (SI, None where it could not matter: :func:`hidden_bias_instability`)."""
     out = {"noise_white_density": noise.white.tolist(), "noise_floor": noise.floor.tolist()}
     if between is not None:
         out["between_step_sigma"] = np.sqrt(between).tolist()
+    if hidden is not None:
+        out["hidden_bias_instability"] = [float(v) if np.isfinite(v) else None for v in hidden]
     return out
 
 
@@ -530,7 +551,7 @@ def _accel_result(fit: _AxisFit) -> TriadFit:
 
 def fit_gyro_static(session: Session, steps: Sequence[int] | None = None, earth_rate: str = "auto",
                     settle_s: float = 1.0, scale_misalignment: np.ndarray | None = None,
-                    bias_instability: np.ndarray | float | None = None) -> TriadFit:
+                    bias_instability: np.ndarray | float | None = None, warn_hidden_floor: bool = True) -> TriadFit:
     """Gyro bias and g-sensitivity ``G`` from static positions (rad/s, rad/s per m/s^2, body frame).
 
     ``earth_rate``: ``"model"`` subtracts the Earth-rate projection ``(C_bn)' w_ie^n`` (needs the
@@ -538,7 +559,7 @@ def fit_gyro_static(session: Session, steps: Sequence[int] | None = None, earth_
     15 °/h), ``"auto"`` models it when the azimuth is known and says so when not.
     ``scale_misalignment``: ``M`` from a rate fit, used to project the Earth rate through
     ``I + M`` (default 0: an error of ``M`` x 15 °/h, 0.015 °/h for M = 1e-3).
-    ``bias_instability`` (rad/s): the unit's bias instability ``B``, as for :func:`fit_accel`.
+    ``bias_instability`` (rad/s) and ``warn_hidden_floor``: as for :func:`fit_accel`.
     ``M`` and nonlinearity are not observed here (NaN sigma).
     """
     if earth_rate not in ("auto", "model", "ignore"):
@@ -578,12 +599,13 @@ def fit_gyro_static(session: Session, steps: Sequence[int] | None = None, earth_
     warnings += w2
     between = between_step_variance(fit, var[used])
     result = _with_bias_wander(_gyro_static_result(fit), noise, between)
-    if bias_instability is None:
-        warnings += _hidden_floor(noise, result.bias_sigma, stats, session.sample_rate_hz, "deg/h", context)
+    hidden, w3 = _hidden_floor(noise, result, stats, session.sample_rate_hz, "deg/h", context, bias_instability,
+                               warn_hidden_floor)
+    warnings += w3
     if np.isnan(result.g_sensitivity_sigma).any():
         warnings.append(f"{context}: g-sensitivity partly not observed by these positions (NaN sigma)")
     comp = result.model().compensate(y, specific_force=f)
-    notes: dict = {"positions": int(used.sum()), **_noise_notes(noise, between)}
+    notes: dict = {"positions": int(used.sum()), **_noise_notes(noise, between, hidden)}
     worst_sigma = float(np.nanmax(result.bias_sigma))
     if use_earth:
         notes["earth_rate"] = "modelled: Earth-rate projection subtracted at each position"
