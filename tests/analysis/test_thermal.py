@@ -152,6 +152,25 @@ def test_ramp_too_fast_for_the_thermal_lag_is_named():
     assert any(w.startswith("step 1 (ramp") and "too fast for the unit's thermal lag" in w for w in warnings)
 
 
+def test_ramp_fit_carries_the_random_walk_at_the_time_it_passed_t_ref():
+    from procedures import thermal as proc
+    from workbench.sim import simulate
+
+    truth = replace(draw_unit(SPEC, 6), sample_rate_hz=5.0, thermal_time_constant_s=60.0)
+    seq = proc.sequence(SPEC, profile="ramp", t_min_c=20.0, t_max_c=40.0, ramp_c_per_min=1.0)
+    session, _ = simulate(seq, truth, 6)
+    k = np.full(3, 1e-6)  # rad/s/√s
+    plain = th.analyze_thermal(session, ("gyro",), t_ref_c=30.0, order=1)
+    walked = th.analyze_thermal(session, ("gyro",), t_ref_c=30.0, order=1, bias_rrw={"gyro": k})
+    rs = walked.ramps["gyro"]
+    # the ramp passes 30 °C about 10 min after it starts (1 °C/min from 20 °C, the unit lagging 1 min)
+    t = th.elapsed_at(rs.temperature_c, rs.elapsed_s, 30.0)
+    ramp = session.steps_of_kind("ramp")[0]
+    assert ramp.t_start - session.samples["t"].iloc[0] + 540.0 < t < ramp.t_start - session.samples["t"].iloc[0] + 720.0
+    added = walked.fits["gyro.bias"].coeffs_sigma[:, 0] ** 2 - plain.fits["gyro.bias"].coeffs_sigma[:, 0] ** 2
+    np.testing.assert_allclose(added, k ** 2 * t, rtol=1e-9)
+
+
 
 def test_bias_at_t_ref_carries_the_random_walk_since_power_on():
     # Seven soaks 35 min apart, a gyro bias random walk K = 1e-5 rad/s/√s (124 °/h/√h: only its
@@ -170,10 +189,10 @@ def test_bias_at_t_ref_carries_the_random_walk_since_power_on():
                                np.full(3, np.nan), np.full(3, np.nan), True, e)
                   for i, (t, v, e) in enumerate(zip(temps, values, elapsed))]
         fit = th.fit_soaks({"gyro": points}, 23.0, order=3)["gyro.bias"]
-        walked = th.with_bias_random_walk(fit, points, k)
+        walked = th.with_bias_random_walk(fit, temps, elapsed, k)
         z_plain.append((fit.coeffs[0, 0] - 1e-3) / fit.coeffs_sigma[0, 0])
         z_walk.append((walked.coeffs[0, 0] - 1e-3) / walked.coeffs_sigma[0, 0])
-    assert th.elapsed_at(points, 23.0) == pytest.approx(elapsed[3] + 0.3 * 2100.0)
+    assert th.elapsed_at(temps, elapsed, 23.0) == pytest.approx(elapsed[3] + 0.3 * 2100.0)
     # an honest sigma gives sum(z^2) ~ chi2(400): rms z below sqrt(chi2_0.999(400) / 400) = 1.11;
     # without the walk the sigma is the fit's alone (measured rms 2.3). With it the sigma is
     # slightly conservative (the held-out floor adds in quadrature; measured 0.83): above 0.7.

@@ -552,7 +552,7 @@ class RampSeries:
 
     ``bias`` (N, 3) SI = mean output minus ``(I + M_ref)`` times the known input (Earth rate or
     gravity in the body frame); ``direction`` +1 rising, -1 falling; ``steps`` the ramp step of
-    each window.
+    each window; ``elapsed_s`` the window's mean time since the session's first sample.
     """
 
     triad: str
@@ -562,6 +562,7 @@ class RampSeries:
     bias_sigma: np.ndarray
     direction: np.ndarray
     steps: np.ndarray
+    elapsed_s: np.ndarray
 
 
 def _ramp_runs(ramps) -> list[list]:
@@ -620,6 +621,7 @@ def ramp_series(session, triad: str, window_s: float = 60.0, reference=None,
     gsens = None if reference is None else reference.g_sensitivity
     rows = []
     g = session.site.gravity
+    t0 = float(session.samples["t"].iloc[0])
     for st in ramps:
         df = session.step_samples(st.index)
         t, temp = df["t"].to_numpy(float), df["temp"].to_numpy(float)
@@ -639,7 +641,7 @@ def ramp_series(session, triad: str, window_s: float = 60.0, reference=None,
             slope = np.polyfit(t[sel] - t[sel][0], temp[sel], 1)[0] * 60.0
             n = sel.sum()
             rows.append((temp[sel].mean(), slope, *(y[sel].mean(0) - known),
-                         *(y[sel].std(0, ddof=1) / np.sqrt(n)), st.index))
+                         *(y[sel].std(0, ddof=1) / np.sqrt(n)), st.index, t[sel].mean() - t0))
     if not rows:
         raise AnalysisError(f"{session.name}: ramp steps give no static window of {window_s} s")
     a = np.array(rows)
@@ -648,7 +650,7 @@ def ramp_series(session, triad: str, window_s: float = 60.0, reference=None,
     if triad == "accel":
         warnings.append("accel ramp fit: the bias of an axis along gravity includes the scale-factor "
                         "change times g (not separable in one position)")
-    return RampSeries(triad, a[:, 0], rate, a[:, 2:5], a[:, 5:8], direction, a[:, 8].astype(int)), warnings
+    return RampSeries(triad, a[:, 0], rate, a[:, 2:5], a[:, 5:8], direction, a[:, 8].astype(int), a[:, 9]), warnings
 
 
 # ---------------------------------------------------------------------------------------
@@ -715,32 +717,37 @@ def fit_soaks(points: dict[str, list[SoakPoint]], t_ref_c: float = 25.0, max_ord
     return fits
 
 
-def elapsed_at(points: list[SoakPoint], t_ref_c: float) -> float:
-    """Session time (s) at which the sweep first passed ``t_ref_c``: interpolated between the
-    soaks (in time order) that bracket it, else the soak nearest to it in temperature."""
-    pts = sorted(points, key=lambda p: p.elapsed_s)
-    for a, b in zip(pts, pts[1:]):
-        if (a.temperature_c - t_ref_c) * (b.temperature_c - t_ref_c) <= 0 and a.temperature_c != b.temperature_c:
-            w = (t_ref_c - a.temperature_c) / (b.temperature_c - a.temperature_c)
-            return float(a.elapsed_s + w * (b.elapsed_s - a.elapsed_s))
-    return float(min(pts, key=lambda p: abs(p.temperature_c - t_ref_c)).elapsed_s)
+def elapsed_at(temperature_c: np.ndarray, elapsed_s: np.ndarray, t_ref_c: float) -> float:
+    """Session time (s) at which the sweep first passed ``t_ref_c``, from the unit temperature of
+    soaks or ramp windows and their times since the session start: interpolated between the two
+    (in time order) that bracket it, else the one nearest to it in temperature."""
+    order = np.argsort(elapsed_s)
+    temp, t = np.asarray(temperature_c, float)[order], np.asarray(elapsed_s, float)[order]
+    for i in range(len(t) - 1):
+        a, b = temp[i], temp[i + 1]
+        if (a - t_ref_c) * (b - t_ref_c) <= 0 and a != b:
+            return float(t[i] + (t_ref_c - a) / (b - a) * (t[i + 1] - t[i]))
+    return float(t[np.argmin(np.abs(temp - t_ref_c))])
 
 
-def with_bias_random_walk(fit: PolyFit, points: list[SoakPoint], rrw: np.ndarray | float | None) -> PolyFit:
-    """``fit`` (a bias fit over soaks) with the bias random walk in the sigma of its value at t_ref.
+def with_bias_random_walk(fit: PolyFit, temperature_c: np.ndarray, elapsed_s: np.ndarray,
+                          rrw: np.ndarray | float | None) -> PolyFit:
+    """``fit`` (a bias fit over a sweep) with the bias random walk in the sigma of its value at t_ref.
 
     A bias random walk ``K`` (SI per axis: rad/s/√s, m/s²/√s; the Allan result's ``rrw``)
-    wanders by ``K sqrt(t)`` from the session start. Soaks follow one another in time, so the
+    wanders by ``K sqrt(t)`` from the session start. The points of a sweep (soaks, ramp windows;
+    unit temperature ``temperature_c`` °C at ``elapsed_s`` s) follow one another in time, so the
     polynomial absorbs the wander and its value at t_ref carries the wander at the time the
     sweep passed t_ref (:func:`elapsed_at`; the first passage, a lower bound for a return
     sweep): variance ``K^2 t`` is added to the constant term's. The bias the set reports is the
     unit's at power-on, like a multi-position test's at ambient.
     """
-    settled = [p for p in points if p.settled and np.isfinite(p.elapsed_s)]
-    if rrw is None or not settled:
+    ok = np.isfinite(np.asarray(elapsed_s, float))
+    if rrw is None or not ok.any():
         return fit
+    t = elapsed_at(np.asarray(temperature_c, float)[ok], np.asarray(elapsed_s, float)[ok], fit.t_ref_c)
     sigma = fit.coeffs_sigma.copy()
-    sigma[:, 0] = np.hypot(sigma[:, 0], np.asarray(rrw, float) * np.sqrt(elapsed_at(settled, fit.t_ref_c)))
+    sigma[:, 0] = np.hypot(sigma[:, 0], np.asarray(rrw, float) * np.sqrt(t))
     return replace(fit, coeffs_sigma=sigma)
 
 
@@ -755,7 +762,7 @@ def analyze_thermal(session, triads=("gyro", "accel"), t_ref_c: float = 25.0, ma
     ``position_sigma`` (rad): the fixture's 1-sigma repeatability, for the per-soak fits;
     ``bias_instability``: triad -> Allan bias instability B (SI), for the per-soak fits;
     ``bias_rrw``: triad -> bias random walk K (SI), for the sigma of the bias at t_ref
-    (:func:`with_bias_random_walk`; soak sweeps only).
+    (:func:`with_bias_random_walk`).
     ``reference`` maps triad name -> TriadModel for the ramp fit's known-input term (optional).
     """
     warnings: list[str] = []
@@ -770,8 +777,10 @@ def analyze_thermal(session, triads=("gyro", "accel"), t_ref_c: float = 25.0, ma
         warnings += w
         fits = fit_soaks(points, t_ref_c, max_order, order, hysteresis)
         for triad, k in (bias_rrw or {}).items():
+            settled = [p for p in points.get(triad, []) if p.settled]
             if f"{triad}.bias" in fits:
-                fits[f"{triad}.bias"] = with_bias_random_walk(fits[f"{triad}.bias"], points[triad], k)
+                fits[f"{triad}.bias"] = with_bias_random_walk(fits[f"{triad}.bias"], [p.temperature_c for p in settled],
+                                                              [p.elapsed_s for p in settled], k)
         temps = [p.temperature_c for pts in points.values() for p in pts if p.settled]
         source = "soak"
     else:
@@ -783,8 +792,10 @@ def analyze_thermal(session, triads=("gyro", "accel"), t_ref_c: float = 25.0, ma
             # folds: eight temperature bands, so a held-out band is a temperature never seen
             edges = np.linspace(rs.temperature_c.min(), rs.temperature_c.max(), 9)
             grp = np.clip(np.digitize(rs.temperature_c, edges[1:-1]), 0, 7)
-            fits[f"{triad}.bias"] = fit_thermal_poly(rs.temperature_c, rs.bias, rs.bias_sigma, rs.direction, grp,
-                                                     t_ref_c, max_order, order, f"{triad}.bias", hysteresis)
+            fits[f"{triad}.bias"] = with_bias_random_walk(
+                fit_thermal_poly(rs.temperature_c, rs.bias, rs.bias_sigma, rs.direction, grp, t_ref_c, max_order,
+                                 order, f"{triad}.bias", hysteresis),
+                rs.temperature_c, rs.elapsed_s, (bias_rrw or {}).get(triad))
         temps = [t for rs in ramps.values() for t in rs.temperature_c]
         source = "ramp"
     for f in fits.values():
