@@ -13,7 +13,7 @@ import procedures.multiposition as mp
 from tests.drivers.conftest import FS, hil_yaml
 from workbench.calset import Unit
 from workbench.drivers.rig import open_real_rig
-from workbench.errors import RigError, RigLimitError
+from workbench.errors import RigError, RigLimitError, WorkbenchError
 from workbench.grades import draw_unit, load_spec
 from workbench.jobs import open_rig, record_procedure, resume_procedure
 from workbench.rigconfig import RIGS_DIR, load_rig_config
@@ -34,10 +34,11 @@ def hil(tmp_path, start_lab, closing):
 
 
 def test_unknown_driver_and_missing_fields(tmp_path):
-    cfg = load_rig_config(hil_yaml(tmp_path, driver="acme"))
-    with pytest.raises(RigError, match=r"rig hil-acutrol-espec: unknown driver 'acme' \(known: sim, real\)"):
-        open_rig(cfg, None, 0)
+    with pytest.raises(WorkbenchError, match=r"hil-0.yaml: driver: unknown driver 'acme' \(known: sim, real\)"):
+        load_rig_config(hil_yaml(tmp_path, driver="acme"))  # the schema refuses it on load
     cfg = load_rig_config(hil_yaml(tmp_path))
+    with pytest.raises(RigError, match=r"rig hil-acutrol-espec: unknown driver 'acme' \(known: sim, real\)"):
+        open_rig(replace(cfg, driver="acme"), None, 0)  # and a configuration built in code is refused on open
     opts = {k: v for k, v in cfg.options.items() if k != "imu_stream"}
     with pytest.raises(RigError, match=r"rig hil-acutrol-espec: missing field 'imu_stream'"):
         open_real_rig(replace(cfg, options=opts))

@@ -109,7 +109,7 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
     """Record a procedure's sequence on the rig, analyse it, store the result and print a summary."""
     from workbench.grades import draw_unit, load_spec
     from workbench.jobs import record_procedure, resume_procedure, run_campaign
-    from workbench.rigconfig import load_rig_config
+    from workbench.rigconfig import check_plan, load_rig_config
 
     store = None if no_store or dry_run else Store()
     if resume is not None:
@@ -130,7 +130,9 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
 
             for p in campaign_procedures(set(spec.triads)):
                 if applies(p, spec):
-                    _print_sequence(p.sequence(spec, **p.DEFAULTS))
+                    seq = p.sequence(spec, **p.DEFAULTS)
+                    _print_sequence(seq)
+                    check_plan(seq.expand(), cfg)
             return
         with _progress_bar() as bar:
             res = run_campaign(spec, truth, cfg, seed, out_dir, store, lambda name: _tracker(bar, name))
@@ -145,6 +147,8 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
     seq = proc.sequence(spec, **{**proc.DEFAULTS, **options})
     _print_sequence(seq)
     if dry_run:
+        check_plan(seq.expand(), cfg)  # the limits the rig would check before anything moves
+        out.print(f"within the limits of rig {cfg.name}")
         return
     out_dir = out_dir or _default_out(proc.NAME, truth.serial)
     cal = _load_calibration(calibration)

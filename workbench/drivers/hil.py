@@ -41,7 +41,7 @@ import numpy as np
 from workbench.drivers.imu_stream import SIGNALS, FrameFormat
 from workbench.drivers.turntable_visa import DEFAULT_COMMANDS, DEFAULT_POSITIONING_RATE
 from workbench.errors import RigError
-from workbench.rigconfig import RigConfig, rig_config_from_dict
+from workbench.rigconfig import RigConfig
 from workbench.sim.rig import SimRig, move_profile, ramp_profile, wrap_pi
 
 HOST = "127.0.0.1"
@@ -211,10 +211,7 @@ class HilLab:
         scheme = "udp" if addr.startswith("udp://") else "socket"
         self.stream_port = free_port() if free_ports else _port_of(addr, "imu_stream.address")
         st["address"] = f"{scheme}://{HOST}:{self.stream_port}"
-        d = {"name": cfg.name, "driver": cfg.driver, "site": cfg.site.to_dict(), **opts}
-        new = rig_config_from_dict(d, str(cfg.path or cfg.name))
-        return replace(new, magnetic_field_ned=cfg.magnetic_field_ned, turntable=cfg.turntable, chamber=cfg.chamber,
-                       path=cfg.path)
+        return replace(cfg, options=opts)
 
     # -- lifecycle ------------------------------------------------------------------------
     def start(self) -> HilLab:

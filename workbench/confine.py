@@ -1,0 +1,58 @@
+"""Names from user input made safe: path components, files confined to a folder, format templates.
+
+- :func:`safe_component`: a serial or name that becomes one path component (a safe character
+  set, no ``..``, no separators).
+- :func:`confined_path`: a relative file name from a profile or an upload, resolved inside a
+  base folder (no absolute paths, no ``..``, no symlink out of the folder).
+- :func:`plain_template`: a ``str.format`` template whose fields are plain names (no
+  ``{x.attr}`` / ``{x[0]}`` access to Python objects), optionally from an allowed set.
+"""
+
+from __future__ import annotations
+
+import re
+import string
+from collections.abc import Iterable
+from pathlib import Path, PurePosixPath, PureWindowsPath
+
+from workbench.errors import WorkbenchError
+
+SAFE_COMPONENT = re.compile(r"[A-Za-z0-9][A-Za-z0-9._+-]{0,63}")
+
+
+def safe_component(text: str, what: str = "name", error: type[WorkbenchError] = WorkbenchError) -> str:
+    """``text`` if it is 1-64 of ``A-Z a-z 0-9 . _ + -`` starting with a letter or digit, else ``error``."""
+    if not isinstance(text, str) or not SAFE_COMPONENT.fullmatch(text) or ".." in text:
+        raise error(f"{what} {text!r}: use 1-64 letters, digits and . _ + - (starting with a letter or digit)")
+    return text
+
+
+def confined_path(base: Path, name: str, what: str = "file",
+                  error: type[WorkbenchError] = WorkbenchError) -> Path:
+    """``base / name`` for a relative ``name`` that stays inside ``base`` (after resolving symlinks)."""
+    if not isinstance(name, str) or not name or "\x00" in name:
+        raise error(f"{what} {name!r}: expected a file name")
+    for pure in (PurePosixPath(name), PureWindowsPath(name)):
+        if pure.is_absolute() or pure.anchor or ".." in pure.parts:
+            raise error(f"{what} {name!r}: must be a file inside {base} (no absolute path, no '..')")
+    root = Path(base).resolve()
+    path = (root / name).resolve()
+    if path != root and root not in path.parents:
+        raise error(f"{what} {name!r}: resolves outside {base}")
+    return path
+
+
+def plain_template(template: str, allowed: Iterable[str] | None = None, what: str = "template",
+                   error: type[WorkbenchError] = WorkbenchError) -> str:
+    """``template`` if every ``{field}`` is a plain name (and in ``allowed`` when given), else ``error``."""
+    try:
+        names = [f for _, f, _, _ in string.Formatter().parse(template) if f is not None]
+    except (ValueError, TypeError) as exc:
+        raise error(f"{what} {template!r}: not a format template ({exc})") from None
+    allowed = None if allowed is None else set(allowed)
+    for n in names:
+        if not n.isidentifier():
+            raise error(f"{what} {template!r}: field {{{n}}} is not a plain name")
+        if allowed is not None and n not in allowed:
+            raise error(f"{what} {template!r}: unknown field {{{n}}} (known: {', '.join(sorted(allowed))})")
+    return template
