@@ -27,12 +27,12 @@ from workbench.earth import normal_gravity, rz
 from workbench.errors import SessionError
 
 FORMAT = "workbench-session/1"
-STEP_KINDS = ("static", "rate", "index", "carousel", "soak", "ramp")
+STEP_KINDS = ("static", "rate", "index", "carousel", "soak", "ramp", "drive")
 GYRO = ["gx", "gy", "gz"]
 ACCEL = ["ax", "ay", "az"]
 MAG = ["mx", "my", "mz"]
 REQUIRED_COLUMNS = ["t", "step", *GYRO, *ACCEL]
-OPTIONAL_COLUMNS = [*MAG, "temp", "table_angle", "table_rate"]
+OPTIONAL_COLUMNS = [*MAG, "temp", "table_angle", "table_rate", "odo_distance"]
 
 
 @dataclass(frozen=True)
