@@ -25,6 +25,14 @@ time after which the heading error stays within ``heading_tol_deg`` and roll and
 ``tilt_tol_deg``; null = never), ``gyro_bias_error`` (rad/s per axis, end of the last mount,
 against the table reference: the mean output minus the known rate over the mount's last static
 step) and ``gyro_bias_sigma`` (the filter's and the reference's in quadrature).
+
+Magnetic disturbances (``mag_rejection``, on by default; :mod:`workbench.nav.ahrs`): the field's
+norm and dip are checked against the reference (the set's field norm for the calibrated run, the
+first second of each mount otherwise; the dip from the first second) and the heading innovation
+is gated. Each block reports ``mag_disturbed_s`` (time the field was off the reference),
+``mag_refused_s`` (time the heading measurement was refused, by the check or the gate) and
+``mag_disturbances`` (the detected intervals, ``[start, end]`` s); ``heading_max_deg`` is then the
+heading excursion a disturbance left.
 """
 
 from __future__ import annotations
@@ -60,6 +68,7 @@ DEFAULTS = {
     "tau_heading_s": 20.0,
     "heading_tol_deg": 1.0,
     "tilt_tol_deg": 0.2,
+    "mag_rejection": True,
     "force": False,
 }
 _SEQUENCE_KEYS = ("mounts", "rates_dps", "rotate_s", "index_deg", "dwell_s")
@@ -130,7 +139,9 @@ def _run_filter(name: str, session: Session, samples, rows, noise, cfg, o, scale
     return {"t": res.t[keep], "errors_deg": err[keep],
             "convergence_time_s": _convergence(res.t, err, o["heading_tol_deg"], o["tilt_tol_deg"]),
             "gyro_bias_error": res.gyro_bias[-1] - ref, "gyro_bias_sigma": res.gyro_bias_sigma[-1],
-            "reference_sigma": ref_sig}
+            "reference_sigma": ref_sig, "mag_disturbed_s": float(np.sum(res.mag_disturbed)) * cfg.update_interval_s,
+            "mag_refused_s": float(np.sum(res.mag_weight == 0.0)) * cfg.update_interval_s,
+            "mag_disturbances": [list(iv) for iv in res.disturbed_intervals()]}
 
 
 def _metrics(segs: list[dict]) -> dict:
@@ -144,7 +155,10 @@ def _metrics(segs: list[dict]) -> dict:
             "velocity_error_mps": None,
             "convergence_time_s": None if any(c is None for c in conv) else max(conv),
             "gyro_bias_error": last["gyro_bias_error"].tolist(),
-            "gyro_bias_sigma": np.hypot(last["gyro_bias_sigma"], last["reference_sigma"]).tolist()}
+            "gyro_bias_sigma": np.hypot(last["gyro_bias_sigma"], last["reference_sigma"]).tolist(),
+            "mag_disturbed_s": sum(s["mag_disturbed_s"] for s in segs),
+            "mag_refused_s": sum(s["mag_refused_s"] for s in segs),
+            "mag_disturbances": [iv for s in segs for iv in s["mag_disturbances"]]}
 
 
 def analyze(session: Session, calibration: CalibrationSet | None = None, **options) -> ProcedureResult:
@@ -158,13 +172,15 @@ def analyze(session: Session, calibration: CalibrationSet | None = None, **optio
     warnings += list(noise.notes)
     base = ahrs.AhrsConfig(update_interval_s=float(o["update_interval_s"]),
                            declination=declination(session, o["declination_deg"]),
-                           tau_tilt_s=float(o["tau_tilt_s"]), tau_heading_s=float(o["tau_heading_s"]))
+                           tau_tilt_s=float(o["tau_tilt_s"]), tau_heading_s=float(o["tau_heading_s"]),
+                           mag_rejection=bool(o["mag_rejection"]))
     cal_all = compensate(raw_all, calibration, TRIADS)
     blocks, payload = {}, {}
     for mode, data in (("raw", raw_all), ("calibrated", cal_all)):
         calibrated = mode == "calibrated"
         (ab, am), (mb, mm) = (_residual(calibration, tr, calibrated) for tr in ("accel", "mag"))
-        cfg = replace(base, accel_bias_error=ab, accel_scale_error=am, mag_bias_error_ut=mb, mag_scale_error=mm)
+        cfg = replace(base, accel_bias_error=ab, accel_scale_error=am, mag_bias_error_ut=mb, mag_scale_error=mm,
+                      mag_reference_norm_ut=calibration.triads["mag"].field_norm_ut if calibrated else None)
         gyro_scale = float(np.sqrt(np.mean(_residual(calibration, "gyro", calibrated)[1] ** 2)))
         per_filter = {name: [] for name in _FILTERS}
         for rows in mount_segments(session):
@@ -189,7 +205,9 @@ def _summary(blocks: dict) -> list[str]:
             err, sig = np.array(m["gyro_bias_error"]), np.array(m["gyro_bias_sigma"], float)
             z = "" if not np.all(np.isfinite(sig)) else " (" + ", ".join(f"{v:+.1f}" for v in err / sig) + " sigma)"
             lines.append(f"{mode} {name}: RMS roll {m['roll_error_deg']:.3f}°, pitch {m['pitch_error_deg']:.3f}°, "
-                         f"heading {m['heading_error_deg']:.2f}° (max {m['heading_max_deg']:.2f}°); gyro-bias error "
+                         f"heading {m['heading_error_deg']:.2f}° (max {m['heading_max_deg']:.2f}°); "
+                         + (f"magnetometer refused {m['mag_refused_s']:.1f} s; " if m["mag_refused_s"] else "")
+                         + "gyro-bias error "
                          + ", ".join(f"{units.to_unit(v, 'deg/h'):+.1f}" for v in err) + f" °/h{z}")
     return lines
 

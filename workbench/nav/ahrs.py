@@ -25,6 +25,22 @@ with ``C_true = Exp(dtheta) C_est``. The heading measurement uses the current ti
 (a tilt-compensated compass) and aids the heading only, so a disturbed magnetometer cannot
 tilt the attitude (paper 004 sec. 4.1.1, 5).
 
+Magnetic disturbances (a magnet, a motor, steel brought near the unit; paper 004 Fig. 16, 20)
+are rejected twice over:
+
+- detection: the block's field in NED, ``|m|`` and dip ``atan2(m_D, |m_h|)``, against the
+  reference (``AhrsConfig.mag_reference_norm_ut`` / ``mag_reference_dip``, e.g. the calibration
+  set's field norm; by default the first ``init_s`` of data). A deviation beyond
+  ``mag_gate_sigma`` times its expected 1-sigma (white noise of the block mean, the residual
+  hard and soft iron of the set, and the floors ``mag_norm_floor_ut`` / ``mag_dip_floor``) marks
+  the block disturbed: its heading measurement is dropped (weight 0) and the heading is carried
+  by the gyros alone, its sigma growing honestly;
+- innovation gating (Kalman filter only): the heading row's gain is scaled by the bifactor
+  M-estimator of paper 001 eq. 46-47 (``c0``, ``c1`` on the normalised innovation), so a
+  disturbance that keeps the norm and dip (a field rotated about the vertical) is refused by its
+  heading innovation. A heading refused by the gate for ``mag_reject_max_s`` in a row with an
+  undisturbed field is taken unscaled again (the reference may be wrong, not the field).
+
 Public: :class:`AhrsConfig`, :class:`AhrsResult`, :func:`kalman`, :func:`complementary`,
 :func:`initial_attitude`, :func:`mag_white_noise`.
 
@@ -56,6 +72,12 @@ class AhrsConfig:
     floors (rad) are added in quadrature to the white measurement noise derived from the sensors
     (vibration, unmodelled errors); ``init_s`` data used for the initial attitude.
 
+    Magnetic-disturbance rejection (module docstring): ``mag_rejection`` switches it on;
+    ``mag_reference_norm_ut`` µT and ``mag_reference_dip`` rad (None: from the first ``init_s``);
+    ``mag_gate_sigma`` the detection threshold in sigmas; ``mag_norm_floor_ut`` µT and
+    ``mag_dip_floor`` rad the floors of the expected norm and dip scatter (local gradients, tilt
+    errors); ``c0``, ``c1`` the heading gate (paper 001 eq. 47); ``mag_reject_max_s`` s.
+
     The calibration errors left in the aiding sensors' samples (e.g. a calibration set's
     1-sigma), body frame, per element, scalars broadcast: ``accel_bias_error`` (3,) m/s^2,
     ``accel_scale_error`` (3, 3) dimensionless (of ``M``), ``mag_bias_error_ut`` (3,) µT (hard
@@ -75,6 +97,15 @@ class AhrsConfig:
     mag_bias_error_ut: float | np.ndarray = 0.0
     mag_scale_error: float | np.ndarray = 0.0
     init_s: float = 1.0
+    mag_rejection: bool = True
+    mag_reference_norm_ut: float | None = None
+    mag_reference_dip: float | None = None
+    mag_gate_sigma: float = 5.0
+    mag_norm_floor_ut: float = 0.3
+    mag_dip_floor: float = np.radians(0.3)
+    c0: float = 3.0
+    c1: float = 6.0
+    mag_reject_max_s: float = 30.0
 
 
 @dataclass(frozen=True)
@@ -84,7 +115,10 @@ class AhrsResult:
     ``t`` (E,) s; ``attitude`` Rotation (E,) body-to-NED; ``rph`` (E, 3) roll, pitch, heading
     rad; ``attitude_sigma`` (E, 3) 1-sigma of the attitude error about north, east, down, rad
     (NaN for the complementary filter, which has none);
-    ``gyro_bias``, ``gyro_bias_sigma`` (E, 3) rad/s body frame; ``filter`` its name.
+    ``gyro_bias``, ``gyro_bias_sigma`` (E, 3) rad/s body frame; ``filter`` its name;
+    ``mag_weight`` (E,) the weight the heading measurement got (1 full, 0 refused);
+    ``mag_disturbed`` (E,) bool, the field's norm or dip off the reference (module docstring);
+    ``mag_reference`` (norm µT, dip rad) the reference used.
     """
 
     t: np.ndarray
@@ -94,6 +128,15 @@ class AhrsResult:
     gyro_bias: np.ndarray
     gyro_bias_sigma: np.ndarray
     filter: str
+    mag_weight: np.ndarray
+    mag_disturbed: np.ndarray
+    mag_reference: tuple[float, float]
+
+    def disturbed_intervals(self) -> list[tuple[float, float]]:
+        """(start, end) s of the runs of update epochs whose field was detected as disturbed."""
+        d = np.concatenate([[False], self.mag_disturbed, [False]]).astype(int)
+        starts, ends = np.nonzero(np.diff(d) == 1)[0], np.nonzero(np.diff(d) == -1)[0] - 1
+        return [(float(self.t[a]), float(self.t[b])) for a, b in zip(starts, ends)]
 
 
 def mag_white_noise(mag: np.ndarray) -> np.ndarray:
@@ -115,12 +158,18 @@ def initial_attitude(samples: ImuSamples, declination: float, n: int) -> np.ndar
     The accelerometer and magnetometer samples are rotated into the first sample's body frame
     with the integrated gyros before averaging, so the unit may already be turning.
     """
+    return _initial(samples, declination, n)[0]
+
+
+def _initial(samples: ImuSamples, declination: float, n: int) -> tuple[np.ndarray, float, float]:
+    """:func:`initial_attitude` and the field's norm (µT) and dip (rad, down positive) over the first ``n``."""
     rel = BlockPropagator(n, samples.dt, np.zeros(3)).propagate(np.eye(3), with_previous(samples.gyro, 0, n))
     f0, m0 = np.einsum("nij,knj->ki", rel, np.stack([samples.accel[:n], samples.mag[:n]])) / n
     roll, pitch = coarse_level(f0)
     m_level = from_rph(roll, pitch, 0.0).apply(m0)
     heading = declination - np.arctan2(m_level[1], m_level[0])
-    return from_rph(roll, pitch, heading).as_matrix()
+    dip = float(np.arctan2(m_level[2], np.hypot(m_level[0], m_level[1])))
+    return from_rph(roll, pitch, heading).as_matrix(), float(np.linalg.norm(m0)), dip
 
 
 @dataclass(frozen=True)
@@ -158,15 +207,41 @@ def _check(samples: ImuSamples, config: AhrsConfig) -> tuple[int, int]:
     return n_blk, n_init
 
 
-def _run(samples: ImuSamples, latitude: float, config: AhrsConfig, correct, name: str) -> AhrsResult:
-    """Shared loop: propagate each block, measure, let ``correct(z, block)`` return (dtheta, db, sigmas)."""
+def _field_gate(config: AhrsConfig, sig_m: float, n_blk: int, ref_norm: float):
+    """``disturbed(blk) -> bool``: the block's field norm or dip beyond ``mag_gate_sigma`` of the reference's.
+
+    Expected 1-sigma of a block's norm (µT): the white noise of the block mean, the residual hard
+    iron (rms per axis) and soft iron (rms per element times the field) of ``config``, and the
+    floor; of its dip: the same over the field magnitude, and the dip floor.
+    """
+    res = _residual_sigma(config)
+    s_mag = np.sqrt(sig_m ** 2 / n_blk + np.mean(res[12:15] ** 2) + np.mean(res[15:] ** 2) * ref_norm ** 2)
+    lim_norm = config.mag_gate_sigma * np.hypot(s_mag, config.mag_norm_floor_ut)
+    lim_dip = config.mag_gate_sigma * np.hypot(s_mag / ref_norm, config.mag_dip_floor)
+
+    def disturbed(blk: _Block, ref_dip: float) -> bool:
+        if not config.mag_rejection:
+            return False
+        dip = np.arctan2(blk.m[2], blk.mh)
+        return bool(abs(np.linalg.norm(blk.m) - ref_norm) > lim_norm or abs(dip - ref_dip) > lim_dip)
+
+    return disturbed
+
+
+def _run(samples: ImuSamples, latitude: float, config: AhrsConfig, correct, name: str,
+         sig_m: float) -> AhrsResult:
+    """Shared loop: propagate each block, measure, check the field (``sig_m`` µT white noise per axis),
+    let ``correct(z, block, disturbed)`` return (dtheta, db, sigmas, heading weight)."""
     n_blk, n_init = _check(samples, config)
     w_ie = earth_rate_ned(latitude)
     prop = BlockPropagator(n_blk, samples.dt, w_ie)
-    c = initial_attitude(samples, config.declination, n_init)
+    c, norm0, dip0 = _initial(samples, config.declination, n_init)
+    ref = (norm0 if config.mag_reference_norm_ut is None else float(config.mag_reference_norm_ut),
+           dip0 if config.mag_reference_dip is None else float(config.mag_reference_dip))
+    disturbed = _field_gate(config, sig_m, n_blk, ref[0])
     bg = np.zeros(3)
     dtheta = np.zeros(3)
-    out_t, out_c, out_d, out_b, out_s = [], [], [], [], []
+    out_t, out_c, out_d, out_b, out_s, out_w, out_x = [], [], [], [], [], [], []
     for i0 in range(0, len(samples) - n_blk + 1, n_blk):
         rates = with_previous(samples.gyro, i0, i0 + n_blk) - bg
         att = prop.propagate(c, rates, dtheta)
@@ -177,7 +252,8 @@ def _run(samples: ImuSamples, latitude: float, config: AhrsConfig, correct, name
         rate = rates[1:].mean(axis=0)
         blk = _Block(att, c_mean, rate, float(np.linalg.norm(rate - c_mean.T @ w_ie)) * n_blk * samples.dt,
                      outer, f, m, float(np.linalg.norm(f)), float(np.hypot(m[0], m[1])))
-        dtheta, dbg, sig = correct(_measure(blk, config.declination), blk)
+        dist = disturbed(blk, ref[1])
+        dtheta, dbg, sig, weight = correct(_measure(blk, config.declination), blk, dist)
         c = att[-1]  # dtheta is applied at the start of the next block
         bg = bg + dbg
         out_t.append(samples.t[i0 + n_blk - 1])
@@ -185,9 +261,12 @@ def _run(samples: ImuSamples, latitude: float, config: AhrsConfig, correct, name
         out_d.append(dtheta)
         out_b.append(bg.copy())
         out_s.append(sig)
+        out_w.append(weight)
+        out_x.append(dist)
     attitude = Rotation.from_rotvec(np.array(out_d)) * Rotation.from_matrix(np.array(out_c))
     sig = np.array(out_s)
-    return AhrsResult(np.array(out_t), attitude, euler_rph(attitude), sig[:, :3], np.array(out_b), sig[:, 3:], name)
+    return AhrsResult(np.array(out_t), attitude, euler_rph(attitude), sig[:, :3], np.array(out_b), sig[:, 3:], name,
+                      np.array(out_w, float), np.array(out_x, bool), ref)
 
 
 def complementary(samples: ImuSamples, latitude: float, config: AhrsConfig = AhrsConfig()) -> AhrsResult:
@@ -195,18 +274,19 @@ def complementary(samples: ImuSamples, latitude: float, config: AhrsConfig = Ahr
 
     Per NED axis ``k_p = 2 / tau``, ``k_i = 1 / tau^2`` (a critically damped loop of time
     constant ``tau``: ``tau_tilt_s`` for north/east, ``tau_heading_s`` for down). No covariance:
-    its sigmas are NaN (not estimated).
+    its sigmas are NaN (not estimated). A block with a disturbed field (module docstring)
+    makes no heading correction; there is no innovation gate (no covariance to scale by).
     """
     T = max(1, int(round(config.update_interval_s / samples.dt))) * samples.dt
     tau = np.array([config.tau_tilt_s, config.tau_tilt_s, config.tau_heading_s])
     kp, ki = 2.0 / tau, 1.0 / tau ** 2
     nan6 = np.full(6, np.nan)
 
-    def correct(z, blk):
-        e = np.array([z[0], z[1], -z[2]])
-        return kp * T * e, -T * blk.c_mean.T @ (ki * e), nan6
+    def correct(z, blk, disturbed):
+        e = np.array([z[0], z[1], 0.0 if disturbed else -z[2]])
+        return kp * T * e, -T * blk.c_mean.T @ (ki * e), nan6, 0.0 if disturbed else 1.0
 
-    return _run(samples, latitude, config, correct, "complementary")
+    return _run(samples, latitude, config, correct, "complementary", float(np.mean(mag_white_noise(samples.mag))))
 
 
 def _residual_sigma(config: AhrsConfig) -> np.ndarray:
@@ -276,7 +356,7 @@ def kalman(samples: ImuSamples, noise: ProcessNoise, latitude: float, config: Ah
     eye_e = np.eye(n_e)
     P0 = np.zeros((n_x, n_x))
     P0[np.diag_indices(6)] = [1e-4, 1e-4, 1e-2, *np.full(3, config.gyro_bias_prior ** 2)]
-    state = {"P": P0, "e": np.zeros(n_e)}
+    state = {"P": P0, "e": np.zeros(n_e), "refused": 0}
 
     def coloured_noise_step(blk):
         """Set ``phi`` and ``qd`` of the measurement-error states for the step to this block."""
@@ -303,7 +383,9 @@ def kalman(samples: ImuSamples, noise: ProcessNoise, latitude: float, config: Ah
         # (a relative 1e-9 ridge keeps the inverse finite when a residual leaves a direction unexcited)
         state["g"], state["sigma_inv"] = gr, np.linalg.inv(sigma + eye_e * (1e-9 * np.trace(sigma) + 1e-300))
 
-    def correct(z, blk):
+    gate_max = int(np.ceil(config.mag_reject_max_s / T))
+
+    def correct(z, blk, disturbed):
         dw = np.linalg.norm(blk.rate - state.get("w", blk.rate))
         state["w"] = blk.rate
         if n_e:
@@ -315,8 +397,13 @@ def kalman(samples: ImuSamples, noise: ProcessNoise, latitude: float, config: Ah
         e = phi[6:, 6:] @ state["e"]
         r_tilt = (vrw / blk.fn) ** 2 / T + config.tilt_noise_floor ** 2
         r_head = sig_m ** 2 / (blk.mh ** 2 * n_blk) + config.heading_noise_floor ** 2
-        P, dx, _ = sequential_update(P, H, z - H[:, 6:] @ e, np.array([r_tilt, r_tilt, r_head]))
+        keep = [0, 1] if disturbed else [0, 1, 2]
+        unscaled = np.array([True, True, not config.mag_rejection or state["refused"] >= gate_max])[keep]
+        P, dx, w = sequential_update(P, H[keep], (z - H[:, 6:] @ e)[keep], np.array([r_tilt, r_tilt, r_head])[keep],
+                                     (config.c0, config.c1), unscaled)
+        weight = 0.0 if disturbed else float(w[2])
+        state["refused"] = 0 if disturbed or weight > 0.0 else state["refused"] + 1
         state["P"], state["e"] = P, e + dx[6:]  # attitude and bias corrections are fed back, e is kept
-        return dx[:3], dx[3:6], np.sqrt(np.diag(P)[:6])
+        return dx[:3], dx[3:6], np.sqrt(np.diag(P)[:6]), weight
 
-    return _run(samples, latitude, config, correct, "kalman")
+    return _run(samples, latitude, config, correct, "kalman", sig_m)
