@@ -322,9 +322,47 @@ def parse_manifest(data: Mapping, source: str) -> tuple[dict, list[StepRecord]]:
     return dict(data), steps
 
 
+GAP_FACTOR = 2.5  # an interval longer than 2.5 nominal sample intervals is a gap
+RATE_TOLERANCE = 0.01  # sample_rate_hz may differ from the time column's rate by 1 %
+
+
+def _check_time_base(t: np.ndarray, labels: np.ndarray, sample_rate_hz: float, source: str,
+                     gaps_in_steps: bool) -> None:
+    """Check the time column (s) against ``sample_rate_hz`` and allow gaps only between steps.
+
+    A gap (an interval over :data:`GAP_FACTOR` nominal intervals) is normal where the recorder
+    paused between steps: the samples either side carry different step labels, or one of them
+    is unlabelled (``step = -1``). A gap inside a step is an error naming the step unless
+    ``gaps_in_steps`` (a gap-aware analysis). The rate is the median interval of consecutive
+    samples inside steps (or of all samples when nothing is labelled); more than
+    :data:`RATE_TOLERANCE` off ``sample_rate_hz`` is an error naming both.
+    """
+    dt = np.diff(t)
+    if not len(dt):
+        return
+    nominal = 1.0 / sample_rate_hz
+    same = (labels[1:] == labels[:-1]) & (labels[1:] >= 0)
+    inside = dt[same] if same.any() else dt
+    measured = 1.0 / float(np.median(inside))
+    if abs(measured - sample_rate_hz) > RATE_TOLERANCE * sample_rate_hz:
+        raise SessionError(f"{source}: sample_rate_hz {sample_rate_hz:g} Hz disagrees with column t, whose median "
+                           f"interval gives {measured:.4g} Hz (more than {RATE_TOLERANCE:.0%} off)")
+    gap = (dt > GAP_FACTOR * nominal) & same
+    if gap.any() and not gaps_in_steps:
+        row = int(np.argmax(gap)) + 1
+        raise SessionError(f"{source}: step {int(labels[row])}: column t: gap of {dt[row - 1]:.4g} s before row "
+                           f"{row} (t={t[row]}) inside the step, sample interval {nominal:.4g} s "
+                           "(gaps are allowed only between steps)")
+
+
 def validate_samples(df: pd.DataFrame, steps: Sequence[StepRecord], sample_rate_hz: float, source: str,
-                     require_complete: bool = True, check_labels: bool = True) -> pd.DataFrame:
-    """Check columns, finiteness, time order and step labels; raise SessionError naming the problem."""
+                     require_complete: bool = True, check_labels: bool = True,
+                     gaps_in_steps: bool = False) -> pd.DataFrame:
+    """Check columns, finiteness, time order, time base and step labels; raise SessionError naming the problem.
+
+    Gaps in time are allowed between steps (see :func:`_check_time_base`); ``gaps_in_steps``
+    also allows them inside steps (for gap-aware analyses).
+    """
     missing = [c for c in REQUIRED_COLUMNS if c not in df.columns]
     if missing:
         raise SessionError(f"{source}: missing column(s) {', '.join(missing)}")
@@ -341,16 +379,12 @@ def validate_samples(df: pd.DataFrame, steps: Sequence[StepRecord], sample_rate_
     if np.any(dt <= 0):
         row = int(np.argmax(dt <= 0)) + 1
         raise SessionError(f"{source}: column t: duplicate or non-increasing time at row {row} (t={t[row]})")
+    labels = df["step"].to_numpy()
+    _check_time_base(t, labels, sample_rate_hz, source, gaps_in_steps)
     nominal = 1.0 / sample_rate_hz
-    gap = dt > 2.5 * nominal
-    if gap.any():
-        row = int(np.argmax(gap)) + 1
-        raise SessionError(f"{source}: column t: gap of {dt[row - 1]:.4g} s before row {row} (t={t[row]}), "
-                           f"sample interval {nominal:.4g} s")
     _check_units(df, source)
     if not check_labels:
         return df
-    labels = df["step"].to_numpy()
     known = {s.index for s in steps}
     unknown = set(np.unique(labels)) - known - {-1}
     if unknown:
@@ -364,14 +398,27 @@ def validate_samples(df: pd.DataFrame, steps: Sequence[StepRecord], sample_rate_
             raise SessionError(f"{source}: step {s.index} ({s.kind}) has no samples")
         if sel.any():
             ts = t[sel]
-            if ts[0] < s.t_start - 1.5 * nominal or ts[-1] > s.t_end + 1.5 * nominal:
-                raise SessionError(f"{source}: step {s.index}: samples at t={ts[0]:.3f}..{ts[-1]:.3f} "
-                                   f"fall outside the step's t_start..t_end {s.t_start:.3f}..{s.t_end:.3f}")
+            _check_step_span(source, s, float(ts[0]), float(ts[-1]), nominal, gaps_in_steps)
     return df
 
 
+def _check_step_span(source: str, s: StepRecord, first: float, last: float, nominal: float,
+                     gaps_in_steps: bool) -> None:
+    """A step's samples (first..last, s) lie within its t_start..t_end and, unless gaps are allowed, fill it."""
+    if first < s.t_start - 1.5 * nominal or last > s.t_end + 1.5 * nominal:
+        raise SessionError(f"{source}: step {s.index}: samples at t={first:.3f}..{last:.3f} "
+                           f"fall outside the step's t_start..t_end {s.t_start:.3f}..{s.t_end:.3f}")
+    if gaps_in_steps:
+        return
+    for lo, hi in ((s.t_start, first), (last, s.t_end)):
+        if hi - lo > GAP_FACTOR * nominal:
+            raise SessionError(f"{source}: step {s.index}: column t: gap of {hi - lo:.4g} s at t={lo:.3f}..{hi:.3f} "
+                               f"inside the step's t_start..t_end {s.t_start:.3f}..{s.t_end:.3f} (no samples there)")
+
+
 def validate_parquet_stream(path: Path, steps: Sequence[StepRecord], sample_rate_hz: float,
-                            require_complete: bool = True, batch_rows: int = 1 << 20) -> None:
+                            require_complete: bool = True, batch_rows: int = 1 << 20,
+                            gaps_in_steps: bool = False) -> None:
     """:func:`validate_samples` batch by batch over a Parquet file, in bounded memory.
 
     Each batch (with the last sample of the previous one, for time order and gaps) goes
@@ -392,7 +439,8 @@ def validate_parquet_stream(path: Path, steps: Sequence[StepRecord], sample_rate
         df = batch.to_pandas()
         chunk = df if prev is None else pd.concat([prev, df], ignore_index=True)
         try:
-            validate_samples(chunk, [], sample_rate_hz, str(path), require_complete=False, check_labels=False)
+            validate_samples(chunk, [], sample_rate_hz, str(path), require_complete=False, check_labels=False,
+                             gaps_in_steps=gaps_in_steps)
         except SessionError as exc:
             raise SessionError(f"{exc} (in the batch starting at row {offset})") from None
         lab, t = df["step"].to_numpy(), df["t"].to_numpy(float)
@@ -412,9 +460,7 @@ def validate_parquet_stream(path: Path, steps: Sequence[StepRecord], sample_rate
                 raise SessionError(f"{path}: step {s.index} ({s.kind}) has no samples")
             continue
         lo, hi = seen[s.index]
-        if lo < s.t_start - 1.5 * nominal or hi > s.t_end + 1.5 * nominal:
-            raise SessionError(f"{path}: step {s.index}: samples at t={lo:.3f}..{hi:.3f} fall outside the step's "
-                               f"t_start..t_end {s.t_start:.3f}..{s.t_end:.3f}")
+        _check_step_span(str(path), s, lo, hi, nominal, gaps_in_steps)
 
 
 def _check_units(df: pd.DataFrame, source: str) -> None:
@@ -442,8 +488,12 @@ def read_samples(path: Path) -> pd.DataFrame:
         raise SessionError(f"{path}: cannot read samples ({type(exc).__name__}: {str(exc)[:120]})") from None
 
 
-def load_session(directory: str | Path, require_complete: bool = True, lazy: bool = False) -> Session:
+def load_session(directory: str | Path, require_complete: bool = True, lazy: bool = False,
+                 gaps_in_steps: bool = False) -> Session:
     """Load and validate a session folder (``session.json`` + ``samples.parquet|csv``).
+
+    Time gaps between steps are normal; ``gaps_in_steps`` also accepts them inside steps
+    (for a gap-aware analysis).
 
     ``lazy``: validate a Parquet samples file batch by batch and keep it on disk
     (``Session.samples`` is None; read it with :meth:`Session.stream`), for records larger
@@ -456,7 +506,8 @@ def load_session(directory: str | Path, require_complete: bool = True, lazy: boo
     spath = samples_file(directory)
     df: pd.DataFrame | None
     if lazy and spath is not None and spath.suffix == ".parquet":
-        validate_parquet_stream(spath, steps, float(fields["sample_rate_hz"]), require_complete)
+        validate_parquet_stream(spath, steps, float(fields["sample_rate_hz"]), require_complete,
+                                gaps_in_steps=gaps_in_steps)
         df = None
     elif spath is not None:
         df = read_samples(spath)
@@ -469,7 +520,8 @@ def load_session(directory: str | Path, require_complete: bool = True, lazy: boo
     else:
         raise SessionError(f"{directory}: no samples.parquet or samples.csv")
     if df is not None:
-        validate_samples(df, steps, float(fields["sample_rate_hz"]), str(spath), require_complete)
+        validate_samples(df, steps, float(fields["sample_rate_hz"]), str(spath), require_complete,
+                         gaps_in_steps=gaps_in_steps)
     u, s = fields["unit"], fields["site"]
     return Session(
         id=str(fields.get("id") or uuid.uuid5(uuid.NAMESPACE_URL, str(directory.resolve()))),
