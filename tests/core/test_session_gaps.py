@@ -14,6 +14,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from tests.core.test_session import _copy
 from tests.nav.conftest import calibration_from_truth
 from workbench.errors import SessionError
 from workbench.grades import draw_unit, load_spec
@@ -30,22 +31,9 @@ def recorded(tmp_path_factory):
     return d
 
 
-def _rewrite(recorded, tmp_path, edit_samples=None, edit_manifest=None):
-    d = tmp_path / "copy"
-    shutil.copytree(recorded, d)
-    df = pd.read_parquet(d / "samples.parquet")
-    if edit_samples is not None:
-        edit_samples(df).reset_index(drop=True).to_parquet(d / "samples.parquet")
-    if edit_manifest is not None:
-        m = json.loads((d / "session.json").read_text())
-        edit_manifest(m)
-        (d / "session.json").write_text(json.dumps(m))
-    return d
-
-
 def test_no_samples_between_steps_is_a_valid_session(recorded, tmp_path):
     full = load_session(recorded)
-    gapped = load_session(_rewrite(recorded, tmp_path, edit_samples=lambda df: df[df.step >= 0]))
+    gapped = load_session(_copy(recorded, tmp_path, edit_samples=lambda df: df[df.step >= 0]))
     t = gapped.samples["t"].to_numpy()
     assert np.diff(t).max() > 1.0  # the table moved unrecorded between the two holds
     for i in (0, 1):
@@ -56,7 +44,7 @@ def test_gap_inside_a_step_names_the_step(recorded, tmp_path):
     def cut(df):
         inside = np.flatnonzero(df.step.to_numpy() == 1)
         return df.drop(index=df.index[inside[100:160]])
-    d = _rewrite(recorded, tmp_path, edit_samples=cut)
+    d = _copy(recorded, tmp_path, edit_samples=cut)
     with pytest.raises(SessionError, match=r"step 1: column t: gap of 0\.61 s .* inside the step"):
         load_session(d)
     with pytest.raises(SessionError, match=r"step 1: column t: gap"):
@@ -65,11 +53,11 @@ def test_gap_inside_a_step_names_the_step(recorded, tmp_path):
 
 
 def test_sample_rate_disagreeing_with_the_time_column_names_both(recorded, tmp_path):
-    d = _rewrite(recorded, tmp_path, edit_manifest=lambda m: m.__setitem__("sample_rate_hz", 200.0))
+    d = _copy(recorded, tmp_path, edit_manifest=lambda m: m.__setitem__("sample_rate_hz", 200.0))
     with pytest.raises(SessionError, match=r"sample_rate_hz 200 Hz disagrees with column t.* gives 100 Hz"):
         load_session(d)
     # within 1 %: accepted (a crystal's tolerance)
-    load_session(_rewrite(recorded, tmp_path / "b", edit_manifest=lambda m: m.__setitem__("sample_rate_hz", 100.5)))
+    load_session(_copy(recorded, tmp_path / "b", edit_manifest=lambda m: m.__setitem__("sample_rate_hz", 100.5)))
 
 
 # Procedures shortened so that each records and analyses in about a second; the unit grades
