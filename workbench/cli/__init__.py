@@ -12,9 +12,9 @@ import os
 import pkgutil
 import sys
 
-import click
 import typer
 from rich.console import Console
+from rich.markup import escape
 
 from workbench import __version__
 from workbench.errors import WorkbenchError
@@ -25,13 +25,17 @@ err = Console(stderr=True)
 out = Console()
 
 
+def _version(value: bool) -> None:
+    if value:
+        out.print(f"workbench {__version__}")
+        raise typer.Exit()
+
+
 @app.callback()
 def _root(db: str = typer.Option(None, "--db", help="Store URL (SQLAlchemy); default $WORKBENCH_DB or "
                                                      "sqlite:///workbench.db"),
-          version: bool = typer.Option(False, "--version", help="Print the version and exit.")) -> None:
-    if version:
-        out.print(f"workbench {__version__}")
-        raise typer.Exit()
+          version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
+                                       help="Print the version and exit.")) -> None:
     if db:
         os.environ["WORKBENCH_DB"] = db
 
@@ -47,23 +51,54 @@ def _register_all() -> None:
 _register_all()
 
 
+def _click_errors() -> tuple[tuple, tuple, tuple]:
+    """(usage errors, exits, aborts) of every click the installed typer may raise.
+
+    Typer up to 0.15 raises ``click``'s exceptions; later versions raise those of their own
+    vendored copy (``typer._click``) and ``typer.Exit`` / ``typer.Abort`` of their own.
+    """
+    mods = []
+    for name in ("click.exceptions", "typer._click.exceptions"):
+        try:
+            mods.append(importlib.import_module(name))
+        except ImportError:
+            pass
+
+    def found(name: str, *extra: type) -> tuple:
+        return tuple({*(getattr(m, name) for m in mods if hasattr(m, name)), *extra})
+    return found("ClickException"), found("Exit", typer.Exit), found("Abort", typer.Abort)
+
+
+def _usage_line(exc: Exception) -> str:
+    """One line for a click usage error: the message and, for a command, where to look for help."""
+    message = " ".join(exc.format_message().split()) or "missing command"  # no arguments: help was shown
+    ctx = getattr(exc, "ctx", None)
+    path = getattr(ctx, "command_path", None) or "workbench"
+    return f"error: {message} (see '{path} --help')"
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Entry point: run the CLI, turning user errors into one line and a non-zero exit."""
+    """Entry point: run the CLI, turning user errors into one line on stderr and exit code 2.
+
+    Usage errors (a missing argument, a bad choice, an unknown command or option) and every
+    :class:`~workbench.errors.WorkbenchError` are one line and exit 2; Ctrl-C exits 130.
+    """
+    usage, exits, aborts = _click_errors()
     command = typer.main.get_command(app)
     try:
-        command.main(args=argv, prog_name="workbench", standalone_mode=False)
+        rv = command.main(args=argv, prog_name="workbench", standalone_mode=False)
     except WorkbenchError as exc:
-        err.print(f"[bold red]error:[/] {exc}", highlight=False, soft_wrap=True)
+        err.print(f"[bold red]error:[/] {escape(' '.join(str(exc).split()))}", highlight=False, soft_wrap=True)
         return 2
-    except click.exceptions.Exit as exc:
-        return exc.exit_code
-    except click.ClickException as exc:
-        exc.show()
-        return exc.exit_code
-    except (KeyboardInterrupt, click.exceptions.Abort):
-        err.print("interrupted")
+    except exits as exc:
+        return int(exc.exit_code or 0)
+    except usage as exc:
+        err.print(escape(_usage_line(exc)), highlight=False, soft_wrap=True)
+        return 2
+    except (KeyboardInterrupt, *aborts):
+        err.print("interrupted", highlight=False)
         return 130
-    return 0
+    return rv if isinstance(rv, int) else 0
 
 
 if __name__ == "__main__":

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import math
+from collections.abc import Mapping
 from contextlib import contextmanager
 from datetime import UTC, datetime
 from pathlib import Path
@@ -18,8 +20,12 @@ from workbench.registry import procedure, procedures
 from workbench.store import Store
 
 
-def parse_options(items: list[str] | None) -> dict:
-    """``key=value`` pairs; values parsed as JSON where they parse (numbers, lists, true/false)."""
+def parse_options(items: list[str] | None, defaults: Mapping | None = None) -> dict:
+    """``key=value`` pairs; values parsed as JSON where they parse (numbers, lists, true/false).
+
+    With the procedure's ``defaults``, an option whose default is a number must be a finite
+    number (``-o dwell_s=abc`` is a one-line error naming the option, not a traceback later).
+    """
     opts = {}
     for item in items or []:
         if "=" not in item:
@@ -27,9 +33,17 @@ def parse_options(items: list[str] | None) -> dict:
         key, value = item.split("=", 1)
         try:
             opts[key.strip()] = json.loads(value)
-        except json.JSONDecodeError:
+        except (json.JSONDecodeError, RecursionError):
             opts[key.strip()] = value
+    for key, value in opts.items():
+        default = (defaults or {}).get(key)
+        if _is_number(default) and not (_is_number(value) and math.isfinite(value)):
+            raise WorkbenchError(f"--option {key}={value!r}: expected a number (default {default!r})")
     return opts
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
 def _progress_bar():
@@ -46,8 +60,9 @@ def _tracker(bar: Progress, name: str):
 
 
 @contextmanager
-def _interruptible(session_dir: Path):
-    """Turn Ctrl-C during a recording into a clean stop that says how to resume."""
+def _interruptible(session_dir: Path, procedure_name: str):
+    """Turn Ctrl-C during a recording (the rig made safe by the runner) into exit code 130 and
+    a command that resumes it."""
     try:
         yield
     except KeyboardInterrupt:
@@ -56,7 +71,8 @@ def _interruptible(session_dir: Path):
         manifest = session_dir / "session.json"
         done = len(_json.loads(manifest.read_text())["steps"]) if manifest.exists() else 0
         err.print(f"stopped: {done} step(s) complete and readable in {session_dir}; the rig was made safe "
-                  f"(table stopped, chamber to its safe setpoint). Continue with: workbench run --resume {session_dir}")
+                  f"(table stopped, chamber to its safe setpoint). Continue with: workbench run {procedure_name} "
+                  f"--resume {session_dir}", highlight=False, soft_wrap=True)
         raise typer.Exit(130) from None
 
 
@@ -113,7 +129,7 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
 
     store = None if no_store or dry_run else Store()
     if resume is not None:
-        with _interruptible(resume), _progress_bar() as bar:
+        with _interruptible(resume, procedure_name), _progress_bar() as bar:
             session = resume_procedure(resume, _tracker(bar, "resume"))
         proc = procedure(session.procedure)
         _analyse_and_report(proc, session, resume.parent if resume.name == "session" else resume, store, calibration)
@@ -143,7 +159,7 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
         out.print(f"figures under {out_dir}/*/figures; store: {store.url if store else 'not used (--no-store)'}")
         return
     proc = procedure(procedure_name)
-    options = parse_options(option)
+    options = parse_options(option, proc.DEFAULTS)
     seq = proc.sequence(spec, **{**proc.DEFAULTS, **options})
     _print_sequence(seq)
     if dry_run:
@@ -154,7 +170,7 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
     cal = _load_calibration(calibration)
     if cal is None and _needs_cal(proc):
         cal = _calibrate_first(spec, truth, cfg, seed, out_dir)
-    with _interruptible(out_dir / "session"), _progress_bar() as bar:
+    with _interruptible(out_dir / "session", proc.NAME), _progress_bar() as bar:
         session = record_procedure(proc, spec, truth, cfg, seed, out_dir / "session", options, _tracker(bar, proc.NAME))
     _analyse_and_report(proc, session, out_dir, store, cal)
 

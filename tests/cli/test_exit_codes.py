@@ -1,0 +1,88 @@
+"""Exit codes and usage errors at the CLI edge (issue 16): one line on stderr, exit 2, no traceback."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from workbench.cli import main
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture
+def db(tmp_path, monkeypatch):
+    monkeypatch.setenv("WORKBENCH_DB", f"sqlite:///{tmp_path}/w.db")
+
+
+@pytest.mark.parametrize("args,match", [
+    (["run"], "Missing argument 'PROCEDURE'"),
+    (["frobnicate"], "No such command 'frobnicate'"),
+    (["run", "multiposition", "--unit"], "'--unit' requires an argument"),
+    (["run", "multiposition", "--seed", "x"], "'--seed'"),
+    (["run", "multiposition", "--bogus"], "No such option: --bogus"),
+    (["sets", "list", "--format", "xx"], "--format 'xx'"),
+    (["run", "multiposition", "-o", "dwell_s=abc", "--dry-run"], "--option dwell_s='abc': expected a number"),
+    (["run", "multiposition", "-o", "dwell_s=NaN", "--dry-run"], "--option dwell_s=nan: expected a number"),
+    (["allan"], "Missing argument"),
+])
+def test_usage_error_is_one_line_and_exit_2(db, capsys, args, match):
+    assert main(args) == 2
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and match in lines[0] and "Traceback" not in captured.err
+
+
+def test_usage_error_of_the_installed_console_script_has_no_traceback(tmp_path):
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "WORKBENCH_DB": f"sqlite:///{tmp_path}/w.db"}
+    p = subprocess.run([sys.executable, "-m", "workbench", "sets", "list", "--format", "xx"], env=env,
+                       capture_output=True, text=True, timeout=120)
+    assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1 and "Traceback" not in p.stderr
+
+
+def test_version_and_help_exit_0(capsys):
+    assert main(["--version"]) == 0 and "workbench" in capsys.readouterr().out
+    assert main(["run", "--help"]) == 0
+
+
+def test_batch_with_failed_sessions_exits_non_zero(db, tmp_path, capsys):
+    bad = tmp_path / "not-a-session"
+    bad.mkdir()
+    assert main(["batch", "multiposition", str(bad), "--scheduler", "serial", "--no-store"]) == 1
+    assert "0 analysed, 1 failed" in capsys.readouterr().out
+
+
+def _steps(manifest: Path) -> int:
+    try:
+        return len(json.loads(manifest.read_text())["steps"])
+    except (FileNotFoundError, json.JSONDecodeError, KeyError):
+        return 0
+
+
+def test_ctrl_c_exits_130_after_making_the_rig_safe_and_the_hint_resumes(tmp_path):
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "WORKBENCH_DB": f"sqlite:///{tmp_path}/w.db"}
+    out = tmp_path / "mp"
+    cmd = [sys.executable, "-m", "workbench", "run", "multiposition", "--out", str(out), "-o", "dwell_s=20"]
+    p = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+    deadline = time.time() + 120
+    while time.time() < deadline and _steps(out / "session" / "session.json") < 2 and p.poll() is None:
+        time.sleep(0.05)
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=120)
+    if p.returncode == 0:
+        pytest.skip("the run finished before Ctrl-C")
+    assert p.returncode == 130 and "Traceback" not in err
+    assert "the rig was made safe" in err
+    hint = err.split("Continue with: ", 1)[1].split()
+    assert hint[:4] == ["workbench", "run", "multiposition", "--resume"]
+    # the hint is a command that works: run it
+    resumed = subprocess.run([sys.executable, "-m", *hint], env=env, capture_output=True, text=True, cwd=tmp_path,
+                             timeout=300)
+    assert resumed.returncode == 0, resumed.stderr
+    assert json.loads((out / "session" / "session.json").read_text())["complete"]
+    assert (out / "result.json").exists()
