@@ -27,6 +27,7 @@ from workbench.sequence import PlannedStep
 from workbench.session import StepRecord
 
 _SOAK_CHUNK_S = 60.0
+_STEADY_BLOCK = 64  # rows rotated at once for a steady segment (the matrix product is row-wise exact)
 
 
 @dataclass
@@ -206,17 +207,22 @@ class SimRig:
         angle = st.table_angle + np.cumsum(0.5 * (prev + rate_profile)) / fs
         # truth in body frame: C_bn = Rz(az0 + angle) @ E @ mount, so v_b = (E mount)^T Rz^T v_n
         m_true = error.as_matrix() @ np.asarray(mount)
-        psi = self._az0 + angle
+        # at a constant table angle and rate (a static step) every row is the same: rotate one block
+        steady = n > _STEADY_BLOCK and angle[0] == angle[-1] and (angle == angle[0]).all() \
+            and (rate_profile == rate_profile[0]).all()
+        rows = _STEADY_BLOCK if steady else n
+        psi = self._az0 + angle[:rows]
         c, s = np.cos(psi), np.sin(psi)
 
         def ned_to_body(v_ned: np.ndarray) -> np.ndarray:
-            v = np.broadcast_to(v_ned, (n, 3))
+            v = np.broadcast_to(v_ned, (rows, 3))
             vt = np.stack([c * v[:, 0] + s * v[:, 1], -s * v[:, 0] + c * v[:, 1], v[:, 2]], axis=1)
-            return vt @ m_true  # row-vector form of m_true^T @ vt
+            body = vt @ m_true  # row-vector form of m_true^T @ vt
+            return np.repeat(body[:1], n, axis=0) if steady else body
 
-        omega_ned = np.empty((n, 3))
+        omega_ned = np.empty((rows, 3))
         omega_ned[:] = self._wie
-        omega_ned[:, 2] += rate_profile
+        omega_ned[:, 2] += rate_profile[:rows]
         omega_b = ned_to_body(omega_ned)
         f_b = ned_to_body(np.array([0.0, 0.0, -self._g]))
         m_b = ned_to_body(self._mag) if self._mag is not None else None
@@ -235,7 +241,7 @@ class SimRig:
         st.table_angle = float(np.mod(angle[-1], 2 * np.pi))
         st.table_rate = float(rate_profile[-1])
         st.mount = np.asarray(mount).tolist()
-        return pd.DataFrame(data)
+        return pd.DataFrame(data, copy=False)
 
     def _temperatures(self, n: int) -> tuple[np.ndarray, np.ndarray]:
         """Air temperature (moving to the chamber target at its ramp rate) and the unit's lag."""
