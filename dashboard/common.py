@@ -163,14 +163,21 @@ def lab_label(name: str) -> str:
     return name.replace("_", " ")
 
 
-def option_inputs(proc: ModuleType, key: str) -> dict:
-    """Widgets for the procedure's ``DEFAULTS`` (numbers, flags, text; lists and unset values as JSON),
-    labelled in lab units, the option's command-line name in the help."""
+def option_inputs(proc: ModuleType, key: str, stage: str | None = None) -> dict:
+    """Widgets built from the procedure's declared options (:mod:`workbench.options`) of ``stage``
+    (default all): choices as a select box, numbers, flags, text; lists and unset values as JSON;
+    labelled in lab units, the option's help and command-line name in the help."""
+    from workbench.options import declarations
+
     options: dict = {}
-    for name, default in dict(getattr(proc, "DEFAULTS", {})).items():
+    for opt in (o for o in declarations(proc) if o.in_stage(stage)):
+        name, default = opt.name, opt.default
         wkey = f"{key}.{proc.NAME}.{name}"
-        label, hint = lab_label(name), f"`workbench run {proc.NAME} -o {name}=...`"
-        if isinstance(default, bool):
+        label, hint = lab_label(name), f"{opt.help} `workbench run {proc.NAME} -o {name}=...`".strip()
+        if opt.choices is not None and default in opt.choices:
+            options[name] = st.selectbox(label, list(opt.choices), index=list(opt.choices).index(default), key=wkey,
+                                         help=hint)
+        elif isinstance(default, bool):
             options[name] = st.checkbox(label, value=default, key=wkey, help=hint)
         elif isinstance(default, int):
             options[name] = int(st.number_input(label, value=default, step=1, key=wkey, help=hint))
@@ -522,7 +529,7 @@ def result_picker(procedure: str, key: str = "result") -> ProcedureResult | None
         return None
     folder = session_picker(procedure, key=f"{key}.session")
     with st.expander("Analysis options"):
-        options = option_inputs(proc, key=f"{key}.options")
+        options = option_inputs(proc, key=f"{key}.options", stage="analysis")
     if folder is None:
         st.info(f"No {procedure} session yet: record one on the Run page or type a session folder.")
         return None

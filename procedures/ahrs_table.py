@@ -48,7 +48,8 @@ from workbench.nav import ahrs
 from workbench.nav.compensate import check_calibration, compensate, imu_samples, process_noise
 from workbench.nav.strapdown import attitude_errors
 from workbench.nav.truth import declination, mount_segments, reference_gyro_bias, table_truth
-from workbench.procedure import ProcedureResult, procedure_options
+from workbench.options import Option, check_options, defaults
+from workbench.procedure import ProcedureResult
 from workbench.sequence import Hold, Index, Rotate, Sequence, mount_from_euler
 from workbench.session import Session
 
@@ -56,28 +57,32 @@ NAME = "ahrs-table"
 TITLE = "AHRS through table rate and tilt steps, raw vs calibrated (validation)"
 TRIADS = ("accel", "gyro", "mag")
 CAMPAIGN_ORDER = None  # a validation run, not a calibration step
-DEFAULTS = {
-    "mounts": [[10.0, -5.0], [-20.0, 15.0]],
-    "rates_dps": [20.0, -45.0],
-    "rotate_s": 120.0,
-    "index_deg": 90.0,
-    "dwell_s": 20.0,
-    "update_interval_s": 0.1,
-    "declination_deg": None,
-    "tau_tilt_s": 5.0,
-    "tau_heading_s": 20.0,
-    "heading_tol_deg": 1.0,
-    "tilt_tol_deg": 0.2,
-    "mag_rejection": True,
-    "force": False,
-}
-_SEQUENCE_KEYS = ("mounts", "rates_dps", "rotate_s", "index_deg", "dwell_s")
+OPTIONS = (
+    Option("mounts", "sequence", "list", [[10.0, -5.0], [-20.0, 15.0]], "tilted mounts [roll, pitch]", unit="deg"),
+    Option("rates_dps", "sequence", "list", [20.0, -45.0], "the two rotation rates of each mount", unit="deg/s"),
+    Option("rotate_s", "sequence", "float", 120.0, "duration of each rotation", unit="s", gt=0),
+    Option("index_deg", "sequence", "float", 90.0, "index between the rotations", unit="deg"),
+    Option("dwell_s", "sequence", "float", 20.0, "each hold", unit="s", gt=0),
+    Option("update_interval_s", "analysis", "float", 0.1, "filter update interval", unit="s", gt=0),
+    Option("declination_deg", "analysis", "float", None, "magnetic declination (default: the rig "
+           "configuration's)", unit="deg"),
+    Option("tau_tilt_s", "analysis", "float", 5.0, "complementary filter tilt time constant", unit="s", gt=0),
+    Option("tau_heading_s", "analysis", "float", 20.0, "complementary filter heading time constant", unit="s",
+           gt=0),
+    Option("heading_tol_deg", "analysis", "float", 1.0, "converged: heading error within this", unit="deg", gt=0),
+    Option("tilt_tol_deg", "analysis", "float", 0.2, "converged: roll and pitch errors within this", unit="deg",
+           gt=0),
+    Option("mag_rejection", "analysis", "bool", True, "reject magnetometer updates in a magnetic disturbance "
+           "(workbench.nav.ahrs)"),
+    Option("force", "analysis", "bool", False, "use a calibration set of another serial"),
+)
+DEFAULTS = defaults(OPTIONS)
 _FILTERS = ("kalman", "complementary")
 
 
 def sequence(spec, **options) -> Sequence:
     """Per tilted mount: hold, rotate, index, rotate back the other way, hold."""
-    o = procedure_options(NAME, options, DEFAULTS)
+    o = check_options(NAME, OPTIONS, options, "sequence")
     if "mag" not in getattr(spec, "triads", ("mag",)):
         raise ProcedureError(f"{NAME}: the unit has no magnetometer (the AHRS heading needs one)")
     r1, r2 = (float(np.radians(r)) for r in o["rates_dps"])
@@ -93,7 +98,7 @@ def sequence(spec, **options) -> Sequence:
                   Rotate(mount=mount, rate=r2, revolutions=None, duration_s=float(o["rotate_s"]),
                          label=f"{tag} {o['rates_dps'][1]:g}°/s"),
                   Hold(mount=mount, dwell_s=float(o["dwell_s"]), label=f"{tag} final hold")]
-    return Sequence(NAME, steps, {k: o[k] for k in _SEQUENCE_KEYS})
+    return Sequence(NAME, steps, dict(o))
 
 
 def _convergence(t: np.ndarray, err: np.ndarray, heading_tol: float, tilt_tol: float) -> float | None:
@@ -163,7 +168,7 @@ def _metrics(segs: list[dict]) -> dict:
 
 def analyze(session: Session, calibration: CalibrationSet | None = None, **options) -> ProcedureResult:
     """Raw and calibrated AHRS runs against the table (see the module docstring)."""
-    o = procedure_options(NAME, options, DEFAULTS)
+    o = check_options(NAME, OPTIONS, options, "analysis")
     warnings = check_calibration(calibration, session.unit.serial, TRIADS, bool(o["force"]), NAME)
     if not session.has_mag:
         raise AnalysisError(f"{session.name}: samples have no magnetometer columns mx, my, mz (the AHRS needs them)")

@@ -18,9 +18,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from workbench.analysis.allan import GAP_POLICIES
 from workbench.analysis.allan_fit import TERMS, AllanAnalysis, analyze_record, analyze_stream
 from workbench.calset import CalibrationSet
 from workbench.errors import AnalysisError, RigLimitError
+from workbench.options import Option, check_options, defaults
 from workbench.plots.allan import plot_triads, term_text
 from workbench.procedure import ProcedureResult
 from workbench.sequence import Hold, Sequence, Soak, with_options
@@ -30,16 +32,25 @@ NAME = "allan"
 TITLE = "Allan variance (long static hold): noise terms with confidence intervals"
 TRIADS = ("accel", "gyro")
 CAMPAIGN_ORDER = 10  # first: its bias instability sets the floor of the static fits that follow
-DEFAULTS = {"duration_s": 7200.0, "temperature_c": 25.0, "mount": "z-down", "soak": True,
-            "taus": "octave", "gap_policy": "error"}
+OPTIONS = (
+    Option("duration_s", "sequence", "float", 7200.0, "static hold (at least 1000 samples)", unit="s", gt=0),
+    Option("temperature_c", "sequence", "float", 25.0, "chamber setpoint of the soak", unit="°C"),
+    Option("mount", "sequence", "any", "z-down", "mount name or 3x3 body->table-top matrix"),
+    Option("soak", "sequence", "bool", True, "soak the chamber at temperature_c first"),
+    Option("taus", "analysis", "any", "octave", "averaging times: octave, decade, '<k>-per-decade' or a list of "
+           "taus", unit="s"),
+    Option("gap_policy", "analysis", "str", "error", "what a gap in the record does", choices=GAP_POLICIES),
+)
+DEFAULTS = defaults(OPTIONS)
 LABEL = "allan"
 LAZY_OK = True  # analyze() streams a lazily loaded session (workbench.fleet.batch loads it lazily)
 STREAM_ROWS = 1 << 20  # samples per streamed batch (about 8 * 4 * STREAM_ROWS bytes with the step column)
 
 
-def sequence(spec, duration_s: float = 7200.0, temperature_c: float = 25.0, mount="z-down", soak: bool = True,
-             **_analysis_options) -> Sequence:
+def sequence(spec, **options) -> Sequence:
     """Soak at ``temperature_c`` (when ``soak``), then a static hold of ``duration_s`` s at ``mount``."""
+    o = check_options(NAME, OPTIONS, options, "sequence")
+    duration_s, temperature_c, mount, soak = o["duration_s"], o["temperature_c"], o["mount"], o["soak"]
     rate = float(getattr(spec, "sample_rate_hz", 100.0) or 100.0)
     if duration_s * rate < 1000:
         raise RigLimitError(f"{NAME}: duration_s {duration_s:g} s gives fewer than 1000 samples at {rate:g} Hz")
@@ -54,11 +65,13 @@ def _hold_step(session):
     return max(holds, key=lambda s: s.duration)
 
 
-def analyze(session, taus: str = "octave", gap_policy: str = "error", **_sequence_options) -> ProcedureResult:
+def analyze(session, **options) -> ProcedureResult:
     """Allan analysis of the longest static hold; gyro always, accel when present.
 
     A lazily loaded session is streamed (``gap_policy`` is then moot: lazy loading already
     refuses non-finite samples)."""
+    o = check_options(NAME, OPTIONS, options, "analysis")
+    taus, gap_policy = o["taus"], o["gap_policy"]
     step = _hold_step(session)
     rate = float(session.sample_rate_hz)
     analyses: dict[str, AllanAnalysis] = {}

@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from workbench.analysis.northfinding import analyze_procedure
+from procedures import _northfinding
 from workbench.errors import RigLimitError
+from workbench.options import Option, check_options, defaults
 from workbench.plots.northfinding import procedure_figures
 from workbench.sequence import Carousel, Hold, Sequence, with_options
 
@@ -20,12 +21,22 @@ NAME = "carousel"
 TITLE = "Carousel north-finding (continuous rotation)"
 TRIADS = ("gyro",)
 CAMPAIGN_ORDER = None
-DEFAULTS = {"rate_deg_s": 10.0, "laps": 10, "start_offset_deg": 0.0, "mount": "z-down", "settle_s": 0.0}
+OPTIONS = (
+    Option("rate_deg_s", "sequence", "float", 10.0, "table rate (clockwise if > 0; non-zero)", unit="deg/s"),
+    Option("laps", "sequence", "int", 10, "whole laps", ge=1),
+    Option("start_offset_deg", "sequence", "float", 0.0, "table angle at the start", unit="deg"),
+    Option("mount", "sequence", "any", "z-down", "mount name or 3x3 body->table-top matrix"),
+    _northfinding.settle_option(0.0),
+    *_northfinding.ANALYSIS_OPTIONS,
+)
+DEFAULTS = defaults(OPTIONS)
 
 
-def sequence(spec, rate_deg_s: float = 10.0, laps: int = 10, start_offset_deg: float = 0.0, mount="z-down",
-             settle_s: float = 0.0, **_analysis_options) -> Sequence:
+def sequence(spec, **options) -> Sequence:
     """A short hold at the start angle, then ``laps`` whole laps at ``rate_deg_s`` (clockwise if > 0)."""
+    o = check_options(NAME, OPTIONS, options, "sequence")
+    rate_deg_s, laps, start_offset_deg, mount, settle_s = (o[k] for k in ("rate_deg_s", "laps", "start_offset_deg",
+                                                                        "mount", "settle_s"))
     if rate_deg_s == 0 or int(laps) < 1:
         raise RigLimitError(f"{NAME}: rate_deg_s must be non-zero and laps >= 1 (got {rate_deg_s}, {laps})")
     lap_s = 360.0 / abs(rate_deg_s)
@@ -39,7 +50,7 @@ def sequence(spec, rate_deg_s: float = 10.0, laps: int = 10, start_offset_deg: f
 
 def analyze(session, **options):
     """Sinusoid fit of the binned carousel data, over all laps and per lap."""
-    return analyze_procedure(NAME, "carousel", session, DEFAULTS, options)
+    return _northfinding.analyze(NAME, "carousel", OPTIONS, session, options)
 
 
 def figures(result) -> dict:

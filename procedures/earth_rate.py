@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from workbench.analysis.northfinding import analyze_procedure
+from procedures import _northfinding
 from workbench.errors import RigLimitError
+from workbench.options import Option, check_options, defaults
 from workbench.plots.northfinding import procedure_figures
 from workbench.sequence import Hold, Index, Repeat, Sequence, with_options
 
@@ -19,13 +20,24 @@ NAME = "earth-rate"
 TITLE = "Earth-rate sweep (full turns in steps)"
 TRIADS = ("gyro",)
 CAMPAIGN_ORDER = None
-DEFAULTS = {"dwell_s": 60.0, "step_deg": 10.0, "turns": 4, "start_offset_deg": 0.0, "mount": "z-down",
-            "settle_s": 2.0}
+OPTIONS = (
+    Option("dwell_s", "sequence", "float", 60.0, "hold per position", unit="s", gt=0),
+    Option("step_deg", "sequence", "float", 10.0, "index between positions (divides 360° into >= 3)", unit="deg",
+           gt=0),
+    Option("turns", "sequence", "int", 4, "full turns", ge=1),
+    Option("start_offset_deg", "sequence", "float", 0.0, "table angle of the first position", unit="deg"),
+    Option("mount", "sequence", "any", "z-down", "mount name or 3x3 body->table-top matrix"),
+    _northfinding.settle_option(2.0),
+    *_northfinding.ANALYSIS_OPTIONS,
+)
+DEFAULTS = defaults(OPTIONS)
 
 
-def sequence(spec, dwell_s: float = 60.0, step_deg: float = 10.0, turns: int = 4, start_offset_deg: float = 0.0,
-             mount="z-down", settle_s: float = 2.0, **_analysis_options) -> Sequence:
+def sequence(spec, **options) -> Sequence:
     """``turns`` full turns clockwise in ``step_deg`` steps (360 / step_deg positions per turn), ``dwell_s`` each."""
+    o = check_options(NAME, OPTIONS, options, "sequence")
+    dwell_s, step_deg, turns, settle_s = o["dwell_s"], o["step_deg"], o["turns"], o["settle_s"]
+    start_offset_deg, mount = o["start_offset_deg"], o["mount"]
     per = 360.0 / step_deg
     if not dwell_s > settle_s:
         raise RigLimitError(f"{NAME}: dwell_s {dwell_s:g} s is not longer than the settling time settle_s "
@@ -41,7 +53,7 @@ def sequence(spec, dwell_s: float = 60.0, step_deg: float = 10.0, turns: int = 4
 
 def analyze(session, **options):
     """Sinusoid fit of all positions (drift on by default) and one per turn."""
-    return analyze_procedure(NAME, "multiposition", session, DEFAULTS, options)
+    return _northfinding.analyze(NAME, "multiposition", OPTIONS, session, options)
 
 
 def figures(result) -> dict:

@@ -23,12 +23,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from procedures.multiposition import fit_summary, position_sigma, result_dict
+from procedures.multiposition import fit_summary, result_dict
 from workbench.analysis.gyro_fit import fit_gyro_turns, turn_checks
 from workbench.analysis.turntable import fit_accel, fit_gyro_static
 from workbench.calset import CalibrationSet
 from workbench.errors import ProcedureError
-from workbench.procedure import ProcedureResult, procedure_options
+from workbench.options import Option, check_options, defaults
+from workbench.procedure import ProcedureResult
 from workbench.sequence import Hold, Rotate, Sequence
 from workbench.session import Session
 
@@ -36,25 +37,28 @@ NAME = "ferraris"
 TITLE = "Ferraris: six positions + three 360° turns (hand-made or no encoder)"
 TRIADS = ("accel", "gyro")
 CAMPAIGN_ORDER = None
-DEFAULTS = {
-    "dwell_s": 10.0,
-    "turn_deg": -360.0,
-    "turn_rate_dps": 90.0,
-    "position_sigma_deg": "auto",
-    "earth_rate": "auto",
-    "settle_s": 0.0,
-    "window_s": 1.0,
-}
-_SEQUENCE_KEYS = ("dwell_s", "turn_deg", "turn_rate_dps")
-_ANALYSIS_KEYS = ("position_sigma_deg", "earth_rate", "settle_s", "window_s")
+OPTIONS = (
+    Option("dwell_s", "sequence", "float", 10.0, "hold per static position", unit="s", gt=0),
+    Option("turn_deg", "sequence", "float", -360.0, "turn about each axis held up (negative: clockwise seen "
+           "from above)", unit="deg"),
+    Option("turn_rate_dps", "sequence", "float", 90.0, "rate of the turns", unit="deg/s", gt=0),
+    Option("position_sigma_deg", "analysis", "float", "auto", "1-sigma tilt of each position ('auto' "
+           "estimates it, as hand-made positions need)", unit="deg", ge=0, words=("auto",)),
+    Option("earth_rate", "analysis", "str", "auto", "Earth rate in the gyro static fit",
+           choices=("auto", "model", "ignore")),
+    Option("settle_s", "analysis", "float", 0.0, "dropped at the start of each step", unit="s", ge=0),
+    Option("window_s", "analysis", "float", 1.0, "window before and after each turn for the motion check",
+           unit="s", gt=0),
+)
+DEFAULTS = defaults(OPTIONS)
 
 
 def sequence(spec, **opts) -> Sequence:
     """Six holds, then one turn about each body axis held up (see the module docstring)."""
-    o = procedure_options(NAME, opts, DEFAULTS, _SEQUENCE_KEYS)
-    turn, rate = float(o["turn_deg"]), float(o["turn_rate_dps"])
-    if turn == 0 or not rate > 0:
-        raise ProcedureError(f"{NAME}: turn_deg must be non-zero and turn_rate_dps positive")
+    o = check_options(NAME, OPTIONS, opts, "sequence")
+    turn, rate = o["turn_deg"], o["turn_rate_dps"]
+    if turn == 0:
+        raise ProcedureError(f"{NAME}: turn_deg must be non-zero")
     steps: list = [Hold(m, 0.0, float(o["dwell_s"]), m)
                    for m in ("x-up", "x-down", "y-up", "y-down", "z-up", "z-down")]
     # with the axis up, a negative turn about it is a positive (clockwise) table rotation
@@ -66,12 +70,12 @@ def sequence(spec, **opts) -> Sequence:
 
 def analyze(session: Session, **opts) -> ProcedureResult:
     """Ferraris calibration of a session (see the module docstring)."""
-    o = procedure_options(NAME, opts, DEFAULTS, _ANALYSIS_KEYS)
-    settle = float(o["settle_s"])
-    acc = fit_accel(session, None, "none", settle_s=settle, position_sigma=position_sigma(o["position_sigma_deg"]))
-    static = fit_gyro_static(session, None, str(o["earth_rate"]), settle_s=settle)
+    o = check_options(NAME, OPTIONS, opts, "analysis")
+    settle = o["settle_s"]
+    acc = fit_accel(session, None, "none", settle_s=settle, position_sigma=o.si("position_sigma_deg"))
+    static = fit_gyro_static(session, None, o["earth_rate"], settle_s=settle)
     gyr = fit_gyro_turns(session, static, acc)
-    checks = turn_checks(session, gyr.model(), acc.model(), window_s=float(o["window_s"]))
+    checks = turn_checks(session, gyr.model(), acc.model(), window_s=o["window_s"])
     calset = CalibrationSet(unit=session.unit, triads={"accel": acc.to_calibration(), "gyro": gyr.to_calibration()},
                             notes={NAME: {"accel": dict(acc.notes), "gyro": dict(gyr.notes),
                                           "turns": [c.to_dict() for c in checks]}})

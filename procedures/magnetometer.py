@@ -21,10 +21,12 @@ from __future__ import annotations
 import numpy as np
 
 from workbench import units
+from workbench.analysis.mag_select import METHODS
 from workbench.analysis.magnetometer import calibrate, points_from_session, triad_calibration
 from workbench.calset import CalibrationSet
 from workbench.errors import AnalysisError, ProcedureError
-from workbench.procedure import ProcedureResult, procedure_options
+from workbench.options import Option, check_options, defaults
+from workbench.procedure import ProcedureResult
 from workbench.sequence import Hold, Rotate, Sequence, mount_from_euler
 from workbench.session import Session
 
@@ -32,41 +34,39 @@ NAME = "magnetometer"
 TITLE = "Magnetometer hard/soft iron and heading (yaw sweeps at fixture tilts)"
 TRIADS = ("mag", "accel")
 CAMPAIGN_ORDER = 50
-DEFAULTS = {
-    "tilts_deg": [[0.0, 0.0], [30.0, 0.0], [-30.0, 0.0], [0.0, 30.0], [0.0, -30.0]],
-    "mode": "steps",
-    "yaw_steps": 12,
-    "dwell_s": 5.0,
-    "rate_dps": 10.0,
-    "method": "auto",
-    "robust": False,
-    "field_norm_ut": None,
-    "declination_deg": None,
-    "accel_calibration": None,
-    "igrf": False,
-}
-_SEQUENCE_KEYS = ("tilts_deg", "mode", "yaw_steps", "dwell_s", "rate_dps")
-_ANALYSIS_KEYS = ("method", "robust", "field_norm_ut", "declination_deg", "accel_calibration", "igrf")
+OPTIONS = (
+    Option("tilts_deg", "sequence", "list", [[0.0, 0.0], [30.0, 0.0], [-30.0, 0.0], [0.0, 30.0], [0.0, -30.0]],
+           "fixture tilts [roll, pitch] of the level z-down mount", unit="deg"),
+    Option("mode", "sequence", "str", "steps", "static yaw steps or one continuous revolution per tilt",
+           choices=("steps", "continuous")),
+    Option("yaw_steps", "sequence", "int", 12, "static holds per tilt (mode steps)", ge=3),
+    Option("dwell_s", "sequence", "float", 5.0, "hold per yaw step", unit="s", gt=0),
+    Option("rate_dps", "sequence", "float", 10.0, "rate of the revolution (mode continuous)", unit="deg/s"),
+    Option("method", "analysis", "str", "auto", "estimator ('auto' chooses and says why)", choices=METHODS),
+    Option("robust", "analysis", "bool", False, "down-weight outlying points"),
+    Option("field_norm_ut", "analysis", "float", None, "the site's field magnitude (fixes the scale of I+M; "
+           "default: the rig site's)", unit="uT", gt=0),
+    Option("declination_deg", "analysis", "float", None, "magnetic declination", unit="deg"),
+    Option("accel_calibration", "analysis", "str", None, "calibration JSON whose accel block compensates the "
+           "gravity direction"),
+    Option("igrf", "analysis", "bool", False, "check the fitted norm and dip against the IGRF at the site"),
+)
+DEFAULTS = defaults(OPTIONS)
 
 
 def sequence(spec, **options) -> Sequence:
     """Yaw sweeps (static steps or one continuous revolution) at each fixture tilt."""
-    o = procedure_options(NAME, options, DEFAULTS, _SEQUENCE_KEYS)
+    o = check_options(NAME, OPTIONS, options, "sequence")
     if getattr(spec, "mag", None) is None:
         raise ProcedureError(f"{NAME}: the unit has no magnetometer")
-    if o["mode"] not in ("steps", "continuous"):
-        raise ProcedureError(f"{NAME}: mode {o['mode']!r} is not 'steps' or 'continuous'")
     tilts = np.asarray(o["tilts_deg"], float).reshape(-1, 2)
     steps: list = []
     for roll, pitch in tilts:
         mount = mount_from_euler("xy", [roll, pitch])
         label = f"tilt roll {roll:g}° pitch {pitch:g}°"
         if o["mode"] == "steps":
-            n = int(o["yaw_steps"])
-            if n < 3:
-                raise ProcedureError(f"{NAME}: yaw_steps {n} < 3")
-            steps += [Hold(mount, float(a), float(o["dwell_s"]), label)
-                      for a in np.linspace(0, 2 * np.pi, n, endpoint=False)]
+            steps += [Hold(mount, float(a), o["dwell_s"], label)
+                      for a in np.linspace(0, 2 * np.pi, o["yaw_steps"], endpoint=False)]
         else:
             steps += [Hold(mount, 0.0, float(o["dwell_s"]), label),
                       Rotate(mount, float(np.radians(o["rate_dps"])), 1.0, label=label)]
@@ -75,9 +75,9 @@ def sequence(spec, **options) -> Sequence:
 
 def analyze(session: Session, **options) -> ProcedureResult:
     """Calibrate the magnetometer from a session of yaw sweeps (see the module docstring)."""
-    o = procedure_options(NAME, options, DEFAULTS, _ANALYSIS_KEYS)
+    o = check_options(NAME, OPTIONS, options, "analysis")
     points = points_from_session(session)
-    decl = None if o["declination_deg"] is None else float(np.radians(o["declination_deg"]))
+    decl = o.si("declination_deg")
     accel = None if o["accel_calibration"] is None else CalibrationSet.load(o["accel_calibration"]).model("accel")
     # the field magnitude: the option, else the reference the rig's site records, else unknown
     norm = o["field_norm_ut"] if o["field_norm_ut"] is not None else session.site.field_norm_ut

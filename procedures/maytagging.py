@@ -15,9 +15,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from workbench.analysis.northfinding import analyze_procedure
+from procedures import _northfinding
 from workbench.analysis.northfinding_theory import adev_model, pair_azimuth_sigma
 from workbench.errors import RigLimitError
+from workbench.options import Option, check_options, defaults
 from workbench.plots.northfinding import procedure_figures
 from workbench.sequence import Hold, Index, Repeat, Sequence, with_options
 
@@ -25,8 +26,17 @@ NAME = "maytagging"
 TITLE = "North-finding by maytagging (±180° indexing)"
 TRIADS = ("gyro",)
 CAMPAIGN_ORDER = 60
-DEFAULTS = {"dwell_s": 60.0, "count": 40, "ordering": "ABAB", "start_offset_deg": 0.0, "mount": "z-down",
-            "settle_s": 2.0}
+OPTIONS = (
+    Option("dwell_s", "sequence", "float", 60.0, "hold per position", unit="s", gt=0),
+    Option("count", "sequence", "int", 40, "pairs of positions (even for ABBA)", ge=1),
+    Option("ordering", "sequence", "str", "ABAB", "ABAB: an index per dwell; ABBA: each position held two dwells",
+           choices=("ABAB", "ABBA")),
+    Option("start_offset_deg", "sequence", "float", 0.0, "table angle of position A", unit="deg"),
+    Option("mount", "sequence", "any", "z-down", "mount name or 3x3 body->table-top matrix"),
+    _northfinding.settle_option(2.0),
+    *_northfinding.ANALYSIS_OPTIONS,
+)
+DEFAULTS = defaults(OPTIONS)
 APPLIES_MAX_PAIR_SIGMA = 0.1  # rad: a pair must locate north to ~6° for the method to make sense
 APPLIES_LATITUDE = np.radians(45.0)  # rad, reference latitude of the applicability test
 
@@ -48,21 +58,20 @@ def applies(spec) -> bool:
     return sigma < APPLIES_MAX_PAIR_SIGMA
 
 
-def sequence(spec, dwell_s: float = 60.0, count: int = 40, ordering: str = "ABAB", start_offset_deg: float = 0.0,
-             mount="z-down", settle_s: float = 2.0, **_analysis_options) -> Sequence:
+def sequence(spec, **options) -> Sequence:
     """``count`` pairs of positions A (the start offset) and B = A + 180°, ``dwell_s`` each.
 
     The table turns clockwise to B and back counter-clockwise (mechanical stops). ABBA
     needs an even ``count``.
     """
+    o = check_options(NAME, OPTIONS, options, "sequence")
+    dwell_s, count, ordering, settle_s = o["dwell_s"], o["count"], o["ordering"], o["settle_s"]
+    start_offset_deg, mount = o["start_offset_deg"], o["mount"]
     if not dwell_s > settle_s:
         raise RigLimitError(f"{NAME}: dwell_s {dwell_s:g} s is not longer than the settling time settle_s "
                             f"{settle_s:g} s")
-    if ordering not in ("ABAB", "ABBA"):
-        raise RigLimitError(f"{NAME}: ordering {ordering!r} is not ABAB or ABBA")
-    count = int(count)
-    if count < 1 or (ordering == "ABBA" and count % 2):
-        raise RigLimitError(f"{NAME}: count {count} must be >= 1 (and even for ABBA)")
+    if ordering == "ABBA" and count % 2:
+        raise RigLimitError(f"{NAME}: count {count} must be even for ABBA")
     a = Hold(mount, np.radians(start_offset_deg), dwell_s, "A")
     to_b, to_a = Index(np.pi, dwell_s, label="B"), Index(-np.pi, dwell_s, label="A")
     if ordering == "ABAB":
@@ -77,7 +86,7 @@ def sequence(spec, dwell_s: float = 60.0, count: int = 40, ordering: str = "ABAB
 
 def analyze(session, **options):
     """Azimuth per pair (eq. 4.6; eq. 4.3 with one level axis), their mean and the theory."""
-    return analyze_procedure(NAME, "maytagging", session, DEFAULTS, options)
+    return _northfinding.analyze(NAME, "maytagging", OPTIONS, session, options)
 
 
 def figures(result) -> dict:

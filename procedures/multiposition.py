@@ -27,7 +27,8 @@ from workbench import units
 from workbench.analysis.turntable import TriadFit, fit_accel, fit_gyro_static
 from workbench.calset import CalibrationSet
 from workbench.errors import ProcedureError
-from workbench.procedure import ProcedureResult, lab_option, procedure_options
+from workbench.options import Option, check_options, defaults
+from workbench.procedure import ProcedureResult
 from workbench.sequence import Hold, Sequence, mount_matrix
 from workbench.session import Session
 
@@ -35,21 +36,25 @@ NAME = "multiposition"
 TITLE = "Multi-position static tumble (accelerometer bias/M/nonlinearity, gyro bias/g-sensitivity)"
 TRIADS = ("accel", "gyro")
 CAMPAIGN_ORDER = 20
-DEFAULTS = {
-    "positions": 6,
-    "dwell_s": 60.0,
-    "table_angle_deg": 0.0,
-    "nonlinearity": "auto",
-    "earth_rate": "auto",
-    "position_sigma_deg": 0.01,
-    "settle_s": 1.0,
-    "accel_bias_instability_mg": None,
-    "gyro_bias_instability_deg_h": None,
-}
-_SEQUENCE_KEYS = ("positions", "dwell_s", "table_angle_deg")
-_ANALYSIS_KEYS = ("nonlinearity", "earth_rate", "position_sigma_deg", "settle_s", "accel_bias_instability_mg",
-                  "gyro_bias_instability_deg_h")
 POSITION_SETS = (6, 12, 18, 24)
+OPTIONS = (
+    Option("positions", "sequence", "int", 6, "position set: 6 faces, 12 edges, 18 both, 24 with the faces again "
+           "at table 180°", choices=POSITION_SETS),
+    Option("dwell_s", "sequence", "float", 60.0, "hold per position", unit="s", gt=0),
+    Option("table_angle_deg", "sequence", "float", 0.0, "table angle of the first pass", unit="deg"),
+    Option("nonlinearity", "analysis", "str", "auto", "accelerometer nonlinearity term",
+           choices=("auto", "fit", "none")),
+    Option("earth_rate", "analysis", "str", "auto", "Earth rate in the gyro static fit",
+           choices=("auto", "model", "ignore")),
+    Option("position_sigma_deg", "analysis", "float", 0.01, "1-sigma tilt of each position (fixture "
+           "repeatability; 'auto' estimates it for hand-made positions)", unit="deg", ge=0, words=("auto",)),
+    Option("settle_s", "analysis", "float", 1.0, "dropped at the start of each step", unit="s", ge=0),
+    Option("accel_bias_instability_mg", "analysis", "magnitude", None, "accelerometer bias instability B "
+           "(Allan), a floor for the bias sigma", unit="mg"),
+    Option("gyro_bias_instability_deg_h", "analysis", "magnitude", None, "gyro bias instability B (Allan), "
+           "a floor for the bias sigma", unit="deg/h"),
+)
+DEFAULTS = defaults(OPTIONS)
 
 
 def _edge_mount(up_body: np.ndarray) -> np.ndarray:
@@ -82,12 +87,10 @@ def positions(n: int) -> list[tuple[object, str, float]]:
 
 def sequence(spec, **opts) -> Sequence:
     """Static holds at the chosen position set (see the module docstring)."""
-    o = procedure_options(NAME, opts, DEFAULTS, _SEQUENCE_KEYS)
-    dwell = float(o["dwell_s"])
-    if not dwell > 0:
-        raise ProcedureError(f"{NAME}: dwell_s={dwell} must be positive")
-    base = float(np.radians(o["table_angle_deg"]))
-    steps = [Hold(m, base + extra, dwell, label) for m, label, extra in positions(int(o["positions"]))]
+    o = check_options(NAME, OPTIONS, opts, "sequence")
+    dwell = o["dwell_s"]
+    base = o.si("table_angle_deg")
+    steps = [Hold(m, base + extra, dwell, label) for m, label, extra in positions(o["positions"])]
     for s in steps:
         mount_matrix(s.mount)  # validate
     return Sequence(NAME, steps, options=dict(o))
@@ -100,12 +103,12 @@ def position_sigma(value) -> float | str:
 
 def analyze(session: Session, **opts) -> ProcedureResult:
     """Accelerometer and gyro static fits of all static steps (see the module docstring)."""
-    o = procedure_options(NAME, opts, DEFAULTS, _ANALYSIS_KEYS)
-    acc = fit_accel(session, None, str(o["nonlinearity"]), settle_s=float(o["settle_s"]),
-                    position_sigma=position_sigma(o["position_sigma_deg"]),
-                    bias_instability=lab_option(NAME, o, "accel_bias_instability_mg", "mg"))
-    gyr = fit_gyro_static(session, None, str(o["earth_rate"]), settle_s=float(o["settle_s"]),
-                          bias_instability=lab_option(NAME, o, "gyro_bias_instability_deg_h", "deg/h"))
+    o = check_options(NAME, OPTIONS, opts, "analysis")
+    acc = fit_accel(session, None, o["nonlinearity"], settle_s=o["settle_s"],
+                    position_sigma=o.si("position_sigma_deg"),
+                    bias_instability=o.si("accel_bias_instability_mg"))
+    gyr = fit_gyro_static(session, None, o["earth_rate"], settle_s=o["settle_s"],
+                          bias_instability=o.si("gyro_bias_instability_deg_h"))
     calset = CalibrationSet(unit=session.unit, triads={"accel": acc.to_calibration(), "gyro": gyr.to_calibration()},
                             notes={NAME: {"accel": dict(acc.notes), "gyro": dict(gyr.notes)}})
     return ProcedureResult(NAME, result=result_dict({"accel": acc, "gyro": gyr}), calibration=calset,

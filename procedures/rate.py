@@ -17,11 +17,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from procedures.multiposition import fit_summary, position_sigma, result_dict
+from procedures.multiposition import fit_summary, result_dict
 from workbench.analysis.turntable import fit_gyro_rate
 from workbench.calset import CalibrationSet
 from workbench.errors import ProcedureError
-from workbench.procedure import ProcedureResult, procedure_options
+from workbench.options import Option, check_options, defaults
+from workbench.procedure import ProcedureResult
 from workbench.sequence import Rotate, Sequence
 from workbench.session import Session
 
@@ -29,16 +30,20 @@ NAME = "rate"
 TITLE = "Rate table: gyro scale factor, misalignment, nonlinearity, asymmetry"
 TRIADS = ("gyro",)
 CAMPAIGN_ORDER = 30
-DEFAULTS = {
-    "mounts": ["x-up", "y-up", "z-up"],
-    "rates_fs": [0.05, 0.2, 0.5, 0.9],
-    "max_rate_dps": 900.0,
-    "min_duration_s": 10.0,
-    "full_scale_dps": None,
-    "position_sigma_deg": 0.01,
-}
-_SEQUENCE_KEYS = ("mounts", "rates_fs", "max_rate_dps", "min_duration_s")
-_ANALYSIS_KEYS = ("full_scale_dps", "position_sigma_deg")
+OPTIONS = (
+    Option("mounts", "sequence", "list", ["x-up", "y-up", "z-up"], "mounts, each putting a body axis along "
+           "the table axis"),
+    Option("rates_fs", "sequence", "list", [0.05, 0.2, 0.5, 0.9], "test rates as fractions of the gyro's "
+           "full scale"),
+    Option("max_rate_dps", "sequence", "float", 900.0, "cap on the test rates", unit="deg/s", gt=0),
+    Option("min_duration_s", "sequence", "float", 10.0, "shortest rotation per direction (whole "
+           "revolutions)", unit="s", gt=0),
+    Option("full_scale_dps", "analysis", "float", None, "gyro full scale for the residuals in % (default: "
+           "the range the sequence stored, else the largest rate)", unit="deg/s", gt=0),
+    Option("position_sigma_deg", "analysis", "float", 0.01, "1-sigma tilt of the table axis in the body "
+           "(fixture repeatability; 'auto' estimates it)", unit="deg", ge=0, words=("auto",)),
+)
+DEFAULTS = defaults(OPTIONS)
 
 
 def rate_set(full_scale: float, rates_fs, max_rate: float) -> list[float]:
@@ -51,15 +56,15 @@ def rate_set(full_scale: float, rates_fs, max_rate: float) -> list[float]:
 
 def sequence(spec, **opts) -> Sequence:
     """CW and CCW whole revolutions at each rate about each mount's table axis."""
-    o = procedure_options(NAME, opts, DEFAULTS, _SEQUENCE_KEYS)
+    o = check_options(NAME, OPTIONS, opts, "sequence")
     if getattr(spec, "gyro", None) is None:
         raise ProcedureError(f"{NAME}: the unit has no gyro")
     fs = float(spec.gyro.range)
-    rates = rate_set(fs, o["rates_fs"], float(np.radians(o["max_rate_dps"])))
+    rates = rate_set(fs, o["rates_fs"], o.si("max_rate_dps"))
     steps = []
     for mount in o["mounts"]:
         for r in rates:
-            revs = max(1, int(np.ceil(float(o["min_duration_s"]) * r / (2 * np.pi))))
+            revs = max(1, int(np.ceil(o["min_duration_s"] * r / (2 * np.pi))))
             for sign, word in ((1, "CW"), (-1, "CCW")):
                 steps.append(Rotate(mount, sign * r, float(revs), label=f"{mount} {word} {np.degrees(r):.0f}°/s"))
     return Sequence(NAME, steps, options={**o, "full_scale_dps": float(np.degrees(fs))})
@@ -76,8 +81,8 @@ def full_scale(session: Session, value) -> float:
 
 def analyze(session: Session, **opts) -> ProcedureResult:
     """Gyro rate fit of all rate steps (see the module docstring)."""
-    o = procedure_options(NAME, opts, DEFAULTS, _ANALYSIS_KEYS)
-    fit = fit_gyro_rate(session, position_sigma=position_sigma(o["position_sigma_deg"]))
+    o = check_options(NAME, OPTIONS, opts, "analysis")
+    fit = fit_gyro_rate(session, position_sigma=o.si("position_sigma_deg"))
     fs = full_scale(session, o["full_scale_dps"])
     calset = CalibrationSet(unit=session.unit, triads={"gyro": fit.to_calibration()},
                             notes={NAME: {"asymmetry": fit.asymmetry.tolist(),

@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from workbench.analysis.northfinding import analyze_procedure
+from procedures import _northfinding
 from workbench.errors import RigLimitError
+from workbench.options import Option, check_options, defaults
 from workbench.plots.northfinding import procedure_figures
 from workbench.sequence import Hold, Index, Repeat, Sequence, with_options
 
@@ -20,13 +21,23 @@ NAME = "redundant"
 TITLE = "Redundant-gyro configuration from 45° steps"
 TRIADS = ("gyro",)
 CAMPAIGN_ORDER = None
-DEFAULTS = {"dwell_s": 60.0, "turns": 10, "start_offset_deg": 0.0, "mount": "z-down", "settle_s": 2.0}
+OPTIONS = (
+    Option("dwell_s", "sequence", "float", 60.0, "hold per 45° position", unit="s", gt=0),
+    Option("turns", "sequence", "int", 10, "turns through the eight positions", ge=1),
+    Option("start_offset_deg", "sequence", "float", 0.0, "table angle of the first position", unit="deg"),
+    Option("mount", "sequence", "any", "z-down", "mount name or 3x3 body->table-top matrix"),
+    _northfinding.settle_option(2.0),
+    *(o for o in _northfinding.ANALYSIS_OPTIONS if o.name != "positions_per_turn"),  # eight, by the method
+)
+DEFAULTS = defaults(OPTIONS)
 STEP = np.pi / 4  # rad, 45° between positions
 
 
-def sequence(spec, dwell_s: float = 60.0, turns: int = 10, start_offset_deg: float = 0.0, mount="z-down",
-             settle_s: float = 2.0, **_analysis_options) -> Sequence:
+def sequence(spec, **options) -> Sequence:
     """``turns`` clockwise turns through the eight 45° positions, ``dwell_s`` each."""
+    o = check_options(NAME, OPTIONS, options, "sequence")
+    dwell_s, turns, start_offset_deg, mount, settle_s = (o[k] for k in ("dwell_s", "turns", "start_offset_deg",
+                                                                      "mount", "settle_s"))
     if not dwell_s > settle_s:
         raise RigLimitError(f"{NAME}: dwell_s {dwell_s:g} s is not longer than the settling time settle_s "
                             f"{settle_s:g} s")
@@ -40,7 +51,8 @@ def sequence(spec, dwell_s: float = 60.0, turns: int = 10, start_offset_deg: flo
 
 def analyze(session, **options):
     """The eight pairings of every turn, their means and spreads."""
-    return analyze_procedure(NAME, "redundant", session, DEFAULTS, {**options, "positions_per_turn": 8})
+    declared = (*OPTIONS, Option("positions_per_turn", "analysis", "int", 8, "eight 45° positions", choices=(8,)))
+    return _northfinding.analyze(NAME, "redundant", declared, session, {**options, "positions_per_turn": 8})
 
 
 def figures(result) -> dict:

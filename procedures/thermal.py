@@ -30,7 +30,8 @@ import numpy as np
 from workbench.analysis.thermal import analyze_thermal, to_calibration
 from workbench.calset import CalibrationSet
 from workbench.errors import RigLimitError
-from workbench.procedure import ProcedureResult, lab_option
+from workbench.options import Option, check_options, defaults
+from workbench.procedure import ProcedureResult
 from workbench.sequence import Hold, Ramp, Rotate, Sequence, Soak, with_options
 from workbench.units import to_unit
 
@@ -38,15 +39,41 @@ NAME = "thermal"
 TITLE = "Thermal sweep (chamber soaks or ramps): bias and scale factor vs temperature"
 TRIADS = ("accel", "gyro")
 CAMPAIGN_ORDER = 40
-DEFAULTS = {
-    "profile": "soak", "t_min_c": -10.0, "t_max_c": 50.0, "step_c": 10.0, "return_sweep": False,
-    "dwell_s": 10.0, "rate_dps": None, "ramp_c_per_min": 1.0, "ramp_dwell_s": None, "mount": "z-down",
-    "settle_tol_c_per_min": 0.05, "settle_window_s": 120.0,
-    "t_ref_c": 25.0, "max_order": 5, "order": None, "hysteresis": "auto", "ramp_window_s": 60.0,
-    "reference": None, "position_sigma_deg": 0.01,
-    "accel_bias_instability_mg": None, "gyro_bias_instability_deg_h": None,
-    "accel_rrw_m_s_h_sqrt_h": None, "gyro_rrw_deg_h_sqrt_h": None,
-}
+OPTIONS = (
+    Option("profile", "sequence", "str", "soak", "chamber profile: soaks at setpoints or a continuous ramp",
+           choices=("soak", "ramp")),
+    Option("t_min_c", "sequence", "float", -10.0, "lowest temperature", unit="°C"),
+    Option("t_max_c", "sequence", "float", 50.0, "highest temperature", unit="°C"),
+    Option("step_c", "sequence", "float", 10.0, "between soak setpoints", unit="°C", gt=0),
+    Option("return_sweep", "sequence", "bool", False, "sweep back down too (hysteresis)"),
+    Option("dwell_s", "sequence", "float", 10.0, "hold per position at each soak", unit="s", gt=0),
+    Option("rate_dps", "sequence", "float", None, "rotations at ±rate about three axes at each soak (gyro scale "
+           "factor)", unit="deg/s", gt=0),
+    Option("ramp_c_per_min", "sequence", "float", 1.0, "ramp rate", unit="°C/min", gt=0),
+    Option("ramp_dwell_s", "sequence", "float", None, "index through the six positions every this during a ramp",
+           unit="s", gt=0),
+    Option("mount", "sequence", "any", "z-down", "mount name or 3x3 body->table-top matrix"),
+    Option("settle_tol_c_per_min", "both", "float", 0.05, "a soak has settled below this rate of change",
+           unit="°C/min", gt=0),
+    Option("settle_window_s", "both", "float", 120.0, "over this window", unit="s", gt=0),
+    Option("t_ref_c", "analysis", "float", 25.0, "reference temperature of the model", unit="°C"),
+    Option("max_order", "analysis", "int", 5, "highest polynomial order tried", ge=0),
+    Option("order", "analysis", "any", None, "polynomial order (default: cross-validated)"),
+    Option("hysteresis", "analysis", "str", "auto", "direction term", choices=("auto", "on", "off")),
+    Option("ramp_window_s", "analysis", "float", 60.0, "averaging window of a ramp", unit="s", gt=0),
+    Option("reference", "analysis", "str", None, "calibration JSON whose M and G the ramp fit removes"),
+    Option("position_sigma_deg", "analysis", "float", 0.01, "1-sigma tilt of each position ('auto' estimates "
+           "it)", unit="deg", ge=0, words=("auto",)),
+    Option("accel_bias_instability_mg", "analysis", "magnitude", None, "accelerometer bias instability B "
+           "(Allan), the floor of each soak's bias sigma", unit="mg"),
+    Option("gyro_bias_instability_deg_h", "analysis", "magnitude", None, "gyro bias instability B (Allan)",
+           unit="deg/h"),
+    Option("accel_rrw_m_s_h_sqrt_h", "analysis", "magnitude", None, "accelerometer bias random walk K (Allan): "
+           "wander of the bias at t_ref", unit="m/s/h/sqrt(h)"),
+    Option("gyro_rrw_deg_h_sqrt_h", "analysis", "magnitude", None, "gyro rate random walk K (Allan)",
+           unit="deg/h/sqrt(h)"),
+)
+DEFAULTS = defaults(OPTIONS)
 SIX = ("z-down", "z-up", "x-up", "x-down", "y-up", "y-down")
 RATE_MOUNTS = ("z-down", "x-up", "y-up")
 _ANALYSIS_KEYS = ("t_ref_c", "max_order", "order", "hysteresis", "settle_tol_c_per_min", "settle_window_s",
@@ -64,11 +91,13 @@ def setpoints(t_min_c: float, t_max_c: float, step_c: float, return_sweep: bool)
     return up + up[-2::-1] if return_sweep else up
 
 
-def sequence(spec, profile: str = "soak", t_min_c: float = -10.0, t_max_c: float = 50.0, step_c: float = 10.0,
-             return_sweep: bool = False, dwell_s: float = 10.0, rate_dps: float | None = None,
-             ramp_c_per_min: float = 1.0, ramp_dwell_s: float | None = None, mount="z-down",
-             settle_tol_c_per_min: float = 0.05, settle_window_s: float = 120.0, **_analysis_options) -> Sequence:
+def sequence(spec, **options) -> Sequence:
     """The chamber profile (see the module docstring); soaks may last up to 12 thermal time constants."""
+    o = check_options(NAME, OPTIONS, options, "sequence")
+    profile, t_min_c, t_max_c, step_c, return_sweep, dwell_s, rate_dps, ramp_c_per_min, ramp_dwell_s, mount, \
+        settle_tol_c_per_min, settle_window_s = (o[k] for k in (
+            "profile", "t_min_c", "t_max_c", "step_c", "return_sweep", "dwell_s", "rate_dps", "ramp_c_per_min",
+            "ramp_dwell_s", "mount", "settle_tol_c_per_min", "settle_window_s"))
     tau = float(getattr(spec, "thermal_time_constant_s", 600.0) or 600.0)
     max_s = max(4 * 3600.0, 12 * tau)
     steps: list = []
@@ -80,14 +109,12 @@ def sequence(spec, profile: str = "soak", t_min_c: float = -10.0, t_max_c: float
                 rate = np.radians(rate_dps)
                 steps += [Rotate(m, sgn * rate, 1.0, None, f"{temp:g} °C {m} {sgn * rate_dps:+g} °/s")
                           for m in RATE_MOUNTS for sgn in (1, -1)]
-    elif profile == "ramp":
+    else:  # ramp
         positions = [[m, 0.0] for m in SIX] if ramp_dwell_s else None
         steps.append(Soak(t_min_c, mount, 0.0, settle_tol_c_per_min, settle_window_s, max_s, f"soak {t_min_c:g} °C"))
         steps.append(Ramp(t_max_c, ramp_c_per_min, mount, 0.0, positions, ramp_dwell_s, "ramp up"))
         if return_sweep:
             steps.append(Ramp(t_min_c, ramp_c_per_min, mount, 0.0, positions, ramp_dwell_s, "ramp down"))
-    else:
-        raise RigLimitError(f"{NAME}: profile {profile!r} is not 'soak' or 'ramp'")
     return with_options(Sequence(NAME, steps), profile=profile, t_min_c=t_min_c, t_max_c=t_max_c, step_c=step_c,
                         return_sweep=return_sweep, dwell_s=dwell_s, rate_dps=rate_dps,
                         ramp_c_per_min=ramp_c_per_min, ramp_dwell_s=ramp_dwell_s)
@@ -109,19 +136,17 @@ def _summary(result) -> list[str]:
 
 def analyze(session, **options) -> ProcedureResult:
     """Thermal analysis of a soak or ramp session -> calibration set with the thermal block."""
-    opts = {**DEFAULTS, **options}
+    opts = check_options(NAME, OPTIONS, options, "analysis")
     reference = None
     if opts["reference"]:  # a calibration JSON (e.g. turntable) for the ramp fit's M and G
         ref = CalibrationSet.load(opts["reference"])
         reference = {t: ref.model(t) for t in ("gyro", "accel") if t in ref.triads}
-    sigma = opts["position_sigma_deg"]
     result = analyze_thermal(session, reference=reference, **{k: opts[k] for k in _ANALYSIS_KEYS},
-                             position_sigma=sigma if sigma == "auto" else float(np.radians(sigma)),
-                             bias_instability={"accel": lab_option(NAME, opts, "accel_bias_instability_mg", "mg"),
-                                               "gyro": lab_option(NAME, opts, "gyro_bias_instability_deg_h",
-                                                                  "deg/h")},
-                             bias_rrw={"accel": lab_option(NAME, opts, "accel_rrw_m_s_h_sqrt_h", "m/s/h/sqrt(h)"),
-                                       "gyro": lab_option(NAME, opts, "gyro_rrw_deg_h_sqrt_h", "deg/h/sqrt(h)")})
+                             position_sigma=opts.si("position_sigma_deg"),
+                             bias_instability={"accel": opts.si("accel_bias_instability_mg"),
+                                               "gyro": opts.si("gyro_bias_instability_deg_h")},
+                             bias_rrw={"accel": opts.si("accel_rrw_m_s_h_sqrt_h"),
+                                       "gyro": opts.si("gyro_rrw_deg_h_sqrt_h")})
     return ProcedureResult(NAME, result.to_dict(), to_calibration(result, session.unit), result,
                            _summary(result), list(result.warnings))
 

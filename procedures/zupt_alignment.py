@@ -34,7 +34,8 @@ from workbench.nav import zupt
 from workbench.nav.compensate import check_calibration, compensate, imu_samples, process_noise
 from workbench.nav.strapdown import attitude_errors, euler_rph
 from workbench.nav.truth import reference_gyro_bias, table_truth
-from workbench.procedure import ProcedureResult, procedure_options
+from workbench.options import Option, check_options, defaults
+from workbench.procedure import ProcedureResult
 from workbench.sequence import Hold, Sequence, mount_matrix
 from workbench.session import Session
 
@@ -42,33 +43,39 @@ NAME = "zupt-alignment"
 TITLE = "ZUPT fine alignment on the table, raw vs calibrated (validation)"
 TRIADS = ("accel", "gyro")
 CAMPAIGN_ORDER = None  # a validation run, not a calibration step
-DEFAULTS = {
-    "positions": [["z-down", 0.0], ["z-down", 90.0], ["y-down", 45.0]],
-    "dwell_s": 180.0,
-    "level_s": 5.0,
-    "update_interval_s": 1.0,
-    "zarupt": False,
-    "gain_scaling": True,
-    "heading_sigma_deg": 0.1,
-    "bias_reference_s": 60.0,
-    "table_zero_azimuth_deg": None,
-    "raw_gyro_bias_prior_dps": 1.0,
-    "raw_accel_bias_prior_mg": 20.0,
-    "force": False,
-}
-_SEQUENCE_KEYS = ("positions", "dwell_s")
+OPTIONS = (
+    Option("positions", "sequence", "list", [["z-down", 0.0], ["z-down", 90.0], ["y-down", 45.0]],
+           "static positions [mount, table angle °]"),
+    Option("dwell_s", "sequence", "float", 180.0, "hold per position", unit="s", gt=0),
+    Option("level_s", "analysis", "float", 5.0, "coarse levelling before the EKF", unit="s", gt=0),
+    Option("update_interval_s", "analysis", "float", 1.0, "ZUPT correction interval", unit="s", gt=0),
+    Option("zarupt", "analysis", "bool", False, "add the zero angular rate update"),
+    Option("gain_scaling", "analysis", "bool", True, "thesis gain scaling of the EKF"),
+    Option("heading_sigma_deg", "analysis", "float", 0.1, "1-sigma of the heading given from outside", unit="deg",
+           gt=0),
+    Option("bias_reference_s", "analysis", "float", 60.0, "the table's gyro-bias reference over the last this of "
+           "each position", unit="s", gt=0),
+    Option("table_zero_azimuth_deg", "analysis", "float", None, "overrides the site's (e.g. a north-finding "
+           "result)", unit="deg"),
+    Option("raw_gyro_bias_prior_dps", "analysis", "float", 1.0, "gyro bias prior of the raw run", unit="deg/s",
+           gt=0),
+    Option("raw_accel_bias_prior_mg", "analysis", "float", 20.0, "accelerometer bias prior of the raw run",
+           unit="mg", gt=0),
+    Option("force", "analysis", "bool", False, "use a calibration set of another serial"),
+)
+DEFAULTS = defaults(OPTIONS)
 _G0 = units.G0
 
 
 def sequence(spec, **options) -> Sequence:
     """A static hold of ``dwell_s`` at each ``[mount, table angle °]`` of ``positions``."""
-    o = procedure_options(NAME, options, DEFAULTS)
+    o = check_options(NAME, OPTIONS, options, "sequence")
     steps = []
     for mount, angle_deg in o["positions"]:
         mount_matrix(mount)  # raises on an unknown mount
         steps.append(Hold(mount=mount, table_angle=float(np.radians(angle_deg)), dwell_s=float(o["dwell_s"]),
                           label=f"{mount} {float(angle_deg):g}°"))
-    return Sequence(NAME, steps, {k: o[k] for k in _SEQUENCE_KEYS})
+    return Sequence(NAME, steps, dict(o))
 
 
 def _priors(cal: CalibrationSet, noise_triad: str, calibrated: bool, raw_prior: float) -> np.ndarray:
@@ -136,7 +143,7 @@ def _block(positions: list[dict]) -> dict:
 
 def analyze(session: Session, calibration: CalibrationSet | None = None, **options) -> ProcedureResult:
     """Raw and calibrated ZUPT alignment at each static position (see the module docstring)."""
-    o = procedure_options(NAME, options, DEFAULTS)
+    o = check_options(NAME, OPTIONS, options, "analysis")
     warnings = check_calibration(calibration, session.unit.serial, ("gyro", "accel"), bool(o["force"]), NAME)
     steps = session.steps_of_kind("static")
     if not steps:

@@ -20,6 +20,7 @@ import numpy as np
 from workbench import units
 from workbench.calset import CalibrationSet, Unit, atomic_write_text, merge
 from workbench.errors import ProcedureError, WorkbenchError
+from workbench.options import declarations, split, validate
 from workbench.procedure import ProcedureResult, run_analysis
 from workbench.registry import campaign_procedures
 from workbench.rigconfig import RigConfig, load_rig_config
@@ -57,20 +58,36 @@ def needs_calibration(proc: ModuleType) -> bool:
 
 def record_procedure(proc: ModuleType, spec, truth, cfg: RigConfig, seed: int, out_dir: Path | None,
                      options: Mapping | None = None, progress: Progress | None = None) -> Session:
-    """Record ``proc``'s sequence for a unit of grade ``spec`` on the rig ``cfg``."""
+    """Record ``proc``'s sequence for a unit of grade ``spec`` on the rig ``cfg``.
+
+    ``options`` may hold options of both stages (checked by :func:`workbench.options.split`);
+    the sequence gets its own, the analysis ones are recorded in the manifest
+    (``analysis_options``, read back by :func:`recorded_analysis_options`).
+    """
     if not set(proc.TRIADS) <= set(spec.triads):
         raise ProcedureError(f"procedure {proc.NAME} needs triads {', '.join(proc.TRIADS)}; "
                              f"grade {spec.name} has {', '.join(spec.triads)}")
-    opts = {**getattr(proc, "DEFAULTS", {}), **dict(options or {})}
-    sequence = proc.sequence(spec, **opts)
+    seq_options, analysis_options = split(proc, options)
+    sequence = proc.sequence(spec, **validate(proc, seq_options, "sequence"))
     rig = open_rig(cfg, truth, seed)
+    # the analysis options given with the recording travel in the manifest, for a resumed run
     rec = start(sequence, rig, Unit(truth.serial, truth.model), proc.NAME, out_dir,
-                extra={"seed": int(seed), "grade": spec.name, "rig_config": str(cfg.path or cfg.name)})
+                extra={"seed": int(seed), "grade": spec.name, "rig_config": str(cfg.path or cfg.name),
+                       **({"analysis_options": analysis_options} if analysis_options else {})})
     if out_dir is not None and cfg.driver == "sim":
         from workbench.sim import write_truth
 
         write_truth(Path(out_dir), truth, cfg, seed)
     return record(rec, rig, progress)
+
+
+def recorded_analysis_options(session: Session | Path) -> dict:
+    """The analysis options recorded with a session by :func:`record_procedure` (empty if none)."""
+    path = Path(session.path if isinstance(session, Session) else session) / "session.json"
+    try:
+        return dict(json.loads(path.read_text()).get("analysis_options") or {})
+    except (OSError, ValueError):
+        return {}
 
 
 def resume_procedure(out_dir: Path, progress: Progress | None = None) -> Session:
@@ -111,7 +128,7 @@ def noise_options(proc: ModuleType, sets: list[CalibrationSet]) -> dict:
     """
     out = {}
     for key, (triad, term, unit) in NOISE_OPTIONS.items():
-        if key not in getattr(proc, "DEFAULTS", {}):
+        if key not in {o.name for o in declarations(proc)}:
             continue
         for s in sets:
             value = s.noise_term(triad, term)
@@ -141,16 +158,19 @@ def run_campaign(spec, truth, cfg: RigConfig, seed: int, out_dir: Path, store=No
     Each procedure records into ``out_dir/<name>/session`` and writes its results and figures to
     ``out_dir/<name>``; the merged set goes to ``out_dir/calibration.json`` and, with a
     ``store``, into the store (per-procedure results too), after everything succeeded.
-    ``options`` maps a procedure name to its sequence options (defaults otherwise). Holds at a
+    ``options`` maps a procedure name to its options (sequence and analysis, checked by
+    :func:`workbench.options.split` before anything is recorded; defaults otherwise). Holds at a
     set temperature run at the chamber's ambient, models with a reference temperature refer to
-    it, and later procedures take the noise terms of earlier ones (:func:`noise_options`);
-    ``campaign.json`` lists the analysis options so set.
+    it, and later procedures take the noise terms of earlier ones (:func:`noise_options`; they
+    go through the procedure's declared-option check like any other); options given explicitly
+    win. ``campaign.json`` lists the analysis options so set.
     """
     procs = [p for p in campaign_procedures(set(spec.triads)) if applies(p, spec) and not needs_calibration(p)]
     if only:
         procs = [p for p in procs if p.NAME in only]
     if not procs:
         raise ProcedureError(f"no campaign procedure applies to grade {spec.name}")
+    given = {p.NAME: split(p, (options or {}).get(p.NAME)) for p in procs}  # refuse bad options up front
     out_dir = Path(out_dir)
     results: dict[str, ProcedureResult] = {}
     sessions: dict[str, Session] = {}
@@ -159,17 +179,19 @@ def run_campaign(spec, truth, cfg: RigConfig, seed: int, out_dir: Path, store=No
     for k, proc in enumerate(procs):
         pdir = out_dir / proc.NAME
         progress = progress_for(proc.NAME) if progress_for else None
-        defaults = getattr(proc, "DEFAULTS", {})
+        declared = {o.name for o in declarations(proc)}
+        seq_given, analysis_given = given[proc.NAME]
         # a hold at a set temperature runs at the ambient the other procedures run at
-        seq_options = {**({"temperature_c": ambient} if "temperature_c" in defaults else {}),
-                       **((options or {}).get(proc.NAME) or {})}
+        seq_options = {**({"temperature_c": ambient} if "temperature_c" in declared else {}), **seq_given}
         session = record_procedure(proc, spec, truth, cfg, seed + 101 * (k + 1), pdir / "session",
                                    seq_options, progress)
         sessions[proc.NAME] = session
         # a model with a reference temperature refers to the ambient the other procedures ran at,
         # so that its bias and scale factor at t_ref merge consistently with theirs
-        analysis = {"t_ref_c": ambient} if "t_ref_c" in defaults else {}
+        analysis = {"t_ref_c": ambient} if "t_ref_c" in declared else {}
         analysis.update(noise_options(proc, [r.calibration for r in results.values() if r.calibration is not None]))
+        analysis.update(analysis_given)
+        validate(proc, analysis, "analysis")  # the noise options pass the declared-option check too
         analyses[proc.NAME] = analysis
         results[proc.NAME] = run_analysis(proc, session, analysis, pdir, None)
     sets = [r.calibration for r in results.values() if r.calibration is not None]

@@ -23,20 +23,15 @@ from workbench.session import Session
 def lab_option(procedure: str, options: Mapping, key: str, unit: str) -> np.ndarray | None:
     """Option ``key``, a magnitude given in the lab ``unit`` (a number >= 0 or one per axis), in SI; None if absent.
 
-    E.g. ``lab_option("multiposition", o, "gyro_bias_instability_deg_h", "deg/h")`` -> rad/s.
+    For a procedure without declared options; a declared ``magnitude`` option is read with
+    ``Options.si`` (:mod:`workbench.options`), through the same check.
     """
-    from workbench import units
-    from workbench.errors import ProcedureError
+    from workbench.options import Option, check_options
 
     if options.get(key) is None:
         return None
-    try:
-        value = np.asarray(options[key], float)
-    except (TypeError, ValueError):
-        value = np.array([np.nan])
-    if value.size not in (1, 3) or value.ndim > 1 or not np.all(np.isfinite(value) & (value >= 0)):
-        raise ProcedureError(f"{procedure}: {key}={options[key]!r} is not a number >= 0 or a list of 3 ({unit})")
-    return value * units.factor(unit)
+    opt = Option(key, "analysis", "magnitude", None, "", unit=unit)
+    return check_options(procedure, (opt,), {key: options[key]}).si(key)
 
 
 @dataclass
@@ -145,11 +140,11 @@ def run_analysis(proc, session: Session, options: Mapping | None = None, out_dir
 def procedure_options(name: str, options: Mapping, defaults: Mapping, keys: tuple[str, ...] | None = None) -> dict:
     """A procedure's options (``keys`` of them, default all) with its defaults filled in.
 
-    Raises ProcedureError naming any option the procedure does not know.
+    For a procedure that has not declared ``OPTIONS`` yet: each key of ``defaults`` is taken as
+    an option of any type; the check is :func:`workbench.options.check_options` (an unknown
+    name raises ProcedureError naming the nearest known one).
     """
-    from workbench.errors import ProcedureError
+    from workbench.options import Option, check_options
 
-    unknown = set(options) - set(defaults)
-    if unknown:
-        raise ProcedureError(f"{name}: unknown option(s) {', '.join(sorted(unknown))} (known: {', '.join(defaults)})")
-    return {k: options.get(k, defaults[k]) for k in (keys if keys is not None else defaults)}
+    o = check_options(name, [Option(k, "both", "any", v, "") for k, v in defaults.items()], options)
+    return {k: o[k] for k in (keys if keys is not None else defaults)}

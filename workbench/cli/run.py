@@ -15,6 +15,7 @@ from rich.table import Table
 
 from workbench.cli import err, out
 from workbench.errors import ProcedureError, WorkbenchError
+from workbench.options import declarations, option_rows, split, validate
 from workbench.procedure import ProcedureResult, run_analysis
 from workbench.registry import procedure, procedures
 from workbench.store import Store
@@ -118,7 +119,8 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
                                                            "default: the simulated unit's, <grade>-<seed>)."),
         out_dir: Path = typer.Option(None, "--out", help="Output folder (default runs/<procedure>-<serial>-<time>)."),
         resume: Path = typer.Option(None, "--resume", help="Continue an interrupted session folder."),
-        option: list[str] = typer.Option(None, "--option", "-o", help="Sequence option key=value (repeatable)."),
+        option: list[str] = typer.Option(None, "--option", "-o", help="Option key=value of the sequence or the analysis (repeatable; "
+                                   "'workbench procedures PROC' lists them; a campaign takes PROC.key=value)."),
         calibration: str = typer.Option(None, "--calibration", help="Calibration set (id or JSON) for validations."),
         no_store: bool = typer.Option(False, "--no-store", help="Leave the store untouched."),
         dry_run: bool = typer.Option(False, "--dry-run", help="Show the sequence and stop.")) -> None:
@@ -129,15 +131,19 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
 
     store = None if no_store or dry_run else Store()
     if resume is not None:
+        from workbench.jobs import recorded_analysis_options
+
         with _interruptible(resume, procedure_name), _progress_bar() as bar:
             session = resume_procedure(resume, _tracker(bar, "resume"))
         proc = procedure(session.procedure)
-        _analyse_and_report(proc, session, resume.parent if resume.name == "session" else resume, store, calibration)
+        _analyse_and_report(proc, session, resume.parent if resume.name == "session" else resume, store, calibration,
+                            {**recorded_analysis_options(session), **parse_options(option)})
         return
     spec = load_spec(unit)
     cfg = load_rig_config(rig)
     truth = draw_unit(spec, seed, serial=serial)
     if procedure_name == "campaign":
+        campaign_options = _campaign_options(parse_options(option))
         out_dir = out_dir or _default_out("campaign", truth.serial)
         out.print(f"campaign for {truth.serial} ({spec.name}) on {cfg.name}, seed {seed} -> {out_dir}")
         if dry_run:
@@ -146,12 +152,13 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
 
             for p in campaign_procedures(set(spec.triads)):
                 if applies(p, spec):
-                    seq = p.sequence(spec, **p.DEFAULTS)
+                    seq = p.sequence(spec, **split(p, campaign_options.get(p.NAME))[0])
                     _print_sequence(seq)
                     check_plan(seq.expand(), cfg)
             return
         with _progress_bar() as bar:
-            res = run_campaign(spec, truth, cfg, seed, out_dir, store, lambda name: _tracker(bar, name))
+            res = run_campaign(spec, truth, cfg, seed, out_dir, store, lambda name: _tracker(bar, name),
+                               options=campaign_options)
         for name, r in res.results.items():
             out.print(f"[bold]{name}[/]")
             _print_result(r, out_dir / name)
@@ -159,8 +166,10 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
         out.print(f"figures under {out_dir}/*/figures; store: {store.url if store else 'not used (--no-store)'}")
         return
     proc = procedure(procedure_name)
-    options = parse_options(option, proc.DEFAULTS)
-    seq = proc.sequence(spec, **{**proc.DEFAULTS, **options})
+    # a number-valued option must be a number (one that also takes a word, e.g. 'auto', is checked below)
+    options = parse_options(option, {o.name: o.default for o in declarations(proc) if not o.words})
+    seq_options, analysis_options = split(proc, options)  # refuses a misspelt option before anything runs
+    seq = proc.sequence(spec, **seq_options)
     _print_sequence(seq)
     if dry_run:
         check_plan(seq.expand(), cfg)  # the limits the rig would check before anything moves
@@ -172,7 +181,20 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
         cal = _calibrate_first(spec, truth, cfg, seed, out_dir)
     with _interruptible(out_dir / "session", proc.NAME), _progress_bar() as bar:
         session = record_procedure(proc, spec, truth, cfg, seed, out_dir / "session", options, _tracker(bar, proc.NAME))
-    _analyse_and_report(proc, session, out_dir, store, cal)
+    _analyse_and_report(proc, session, out_dir, store, cal, analysis_options)
+
+
+def _campaign_options(options: dict) -> dict[str, dict]:
+    """``-o PROC.key=value`` of a campaign -> {procedure: {key: value}}, each checked against its procedure."""
+    by_proc: dict[str, dict] = {}
+    for key, value in options.items():
+        name, dot, opt = key.partition(".")
+        if not dot:
+            raise ProcedureError(f"campaign: option {key!r} must name its procedure, e.g. -o multiposition.{key}=...")
+        by_proc.setdefault(name, {})[opt] = value
+    for name, opts in by_proc.items():
+        split(procedure(name), opts)
+    return by_proc
 
 
 def _needs_cal(proc) -> bool:
@@ -194,9 +216,10 @@ def _calibrate_first(spec, truth, cfg, seed, out_dir: Path):
     return res.calibration
 
 
-def _analyse_and_report(proc, session, out_dir: Path, store, calibration) -> None:
-    options = {"calibration": _load_calibration(calibration) if isinstance(calibration, str) else calibration} \
-        if calibration is not None else {}
+def _analyse_and_report(proc, session, out_dir: Path, store, calibration, analysis_options=None) -> None:
+    options = dict(analysis_options or {})  # checked again by the procedure's analyze()
+    if calibration is not None:
+        options["calibration"] = _load_calibration(calibration) if isinstance(calibration, str) else calibration
     result = run_analysis(proc, session, options, out_dir, store)
     _print_result(result, out_dir)
     if result.calibration is not None:
@@ -216,8 +239,9 @@ def analyze(procedure_name: str = typer.Argument(..., metavar="PROCEDURE"),
     from workbench.session import load_session
 
     proc = procedure(procedure_name)
-    session = load_session(session_dir)
     options = parse_options(option)
+    validate(proc, options)  # a misspelt option is refused before the session is read
+    session = load_session(session_dir)
     if calibration is not None:
         options["calibration"] = _load_calibration(calibration)
     result = run_analysis(proc, session, options, figures, None if no_store else Store())
@@ -247,11 +271,23 @@ def import_cmd(profile: Path = typer.Argument(..., help="Import profile (YAML)."
     out.print(t)
 
 
-def list_procedures() -> None:
-    """List the procedures and their default options."""
+def list_procedures(name: str = typer.Argument(None, metavar="[PROCEDURE]",
+                                               help="Show this procedure's options.")) -> None:
+    """List the procedures, or the declared options of one (stage, type, unit, default, allowed values)."""
+    if name is not None:
+        proc = procedure(name)
+        t = Table(title=f"{proc.NAME}: {proc.TITLE}")
+        t.add_column("option", no_wrap=True)
+        for col in ("stage", "type", "unit", "default", "allowed", "help"):
+            t.add_column(col)
+        for r in option_rows(proc):
+            t.add_row(r["name"], r["stage"], r["type"], r["unit"], r["default"], r["allowed"], r["help"])
+        out.print(t)
+        return
     t = Table("procedure", "title", "triads", "campaign", "options")
-    for name, p in sorted(procedures().items()):
-        t.add_row(name, p.TITLE, ", ".join(p.TRIADS), str(p.CAMPAIGN_ORDER or "—"), ", ".join(p.DEFAULTS))
+    for pname, p in sorted(procedures().items()):
+        t.add_row(pname, p.TITLE, ", ".join(p.TRIADS), str(p.CAMPAIGN_ORDER or "—"),
+                  ", ".join(o["name"] for o in option_rows(p)))
     out.print(t)
 
 

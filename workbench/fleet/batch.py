@@ -175,9 +175,11 @@ def run_batch(procedure: str, session_dirs: Iterable[str | Path], client=None, s
     the report keeps only ``session_dir``, ``procedure``, ``ok`` and ``error`` of each outcome, so the
     submitting process's memory does not grow with the results either.
     """
+    from workbench.options import split
     from workbench.registry import procedure as get_procedure
 
-    get_procedure(procedure)  # unknown procedure: fail before anything starts
+    # an unknown procedure or option, or a bad value: fail before anything starts
+    split(get_procedure(procedure), options)
     dirs = [str(d) for d in session_dirs]
     report = BatchReport()
 
