@@ -14,6 +14,10 @@ from workbench.options import Option, check_options
 from workbench.procedure import ProcedureResult
 from workbench.session import Session
 
+# sequence options every north-finding procedure has
+START_OFFSET = Option("start_offset_deg", "sequence", "float", 0.0, "table angle of the first position", unit="deg")
+MOUNT = Option("mount", "sequence", "any", "z-down", "mount name or 3x3 body->table-top matrix")
+
 ANALYSIS_OPTIONS = (
     Option("drift", "analysis", "bool", None, "fit a linear bias drift (default: off for maytagging, on "
            "otherwise)"),

@@ -24,8 +24,8 @@ CAMPAIGN_ORDER = None
 OPTIONS = (
     Option("rate_deg_s", "sequence", "float", 10.0, "table rate (clockwise if > 0; non-zero)", unit="deg/s"),
     Option("laps", "sequence", "int", 10, "whole laps", ge=1),
-    Option("start_offset_deg", "sequence", "float", 0.0, "table angle at the start", unit="deg"),
-    Option("mount", "sequence", "any", "z-down", "mount name or 3x3 body->table-top matrix"),
+    _northfinding.START_OFFSET,
+    _northfinding.MOUNT,
     _northfinding.settle_option(0.0),
     *_northfinding.ANALYSIS_OPTIONS,
 )

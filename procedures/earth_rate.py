@@ -25,8 +25,8 @@ OPTIONS = (
     Option("step_deg", "sequence", "float", 10.0, "index between positions (divides 360° into >= 3)", unit="deg",
            gt=0),
     Option("turns", "sequence", "int", 4, "full turns", ge=1),
-    Option("start_offset_deg", "sequence", "float", 0.0, "table angle of the first position", unit="deg"),
-    Option("mount", "sequence", "any", "z-down", "mount name or 3x3 body->table-top matrix"),
+    _northfinding.START_OFFSET,
+    _northfinding.MOUNT,
     _northfinding.settle_option(2.0),
     *_northfinding.ANALYSIS_OPTIONS,
 )

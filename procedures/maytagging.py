@@ -31,8 +31,8 @@ OPTIONS = (
     Option("count", "sequence", "int", 40, "pairs of positions (even for ABBA)", ge=1),
     Option("ordering", "sequence", "str", "ABAB", "ABAB: an index per dwell; ABBA: each position held two dwells",
            choices=("ABAB", "ABBA")),
-    Option("start_offset_deg", "sequence", "float", 0.0, "table angle of position A", unit="deg"),
-    Option("mount", "sequence", "any", "z-down", "mount name or 3x3 body->table-top matrix"),
+    _northfinding.START_OFFSET,
+    _northfinding.MOUNT,
     _northfinding.settle_option(2.0),
     *_northfinding.ANALYSIS_OPTIONS,
 )

@@ -24,8 +24,8 @@ CAMPAIGN_ORDER = None
 OPTIONS = (
     Option("dwell_s", "sequence", "float", 60.0, "hold per 45° position", unit="s", gt=0),
     Option("turns", "sequence", "int", 10, "turns through the eight positions", ge=1),
-    Option("start_offset_deg", "sequence", "float", 0.0, "table angle of the first position", unit="deg"),
-    Option("mount", "sequence", "any", "z-down", "mount name or 3x3 body->table-top matrix"),
+    _northfinding.START_OFFSET,
+    _northfinding.MOUNT,
     _northfinding.settle_option(2.0),
     *(o for o in _northfinding.ANALYSIS_OPTIONS if o.name != "positions_per_turn"),  # eight, by the method
 )
