@@ -205,13 +205,37 @@ class CalibrationSet:
 
     @classmethod
     def load(cls, path: str | Path) -> CalibrationSet:
-        """Read and validate a calibration JSON file."""
+        """Read and validate a calibration file: canonical JSON, or its YAML form (``.yaml`` / ``.yml``,
+        as written by ``workbench sets export --format yaml``)."""
         path = Path(path)
         try:
             text = path.read_text()
         except OSError as exc:
             raise CalibrationFormatError(f"{path}: cannot read ({exc.strerror})") from None
+        if path.suffix.lower() in (".yaml", ".yml"):
+            return cls.from_yaml(text, source=str(path))
         return cls.from_json(text, source=str(path))
+
+    @classmethod
+    def from_yaml(cls, text: str, source: str = "<yaml>") -> CalibrationSet:
+        """Parse and validate the YAML form of a set (the canonical dict; aliases refused)."""
+        import yaml
+
+        class _NoAliases(yaml.SafeLoader):
+            def compose_node(self, parent, index):  # an alias could expand a small file into a huge one
+                if self.check_event(yaml.AliasEvent):
+                    raise CalibrationFormatError(f"{source}: YAML aliases are not accepted in a calibration set")
+                return super().compose_node(parent, index)
+
+        try:
+            data = yaml.load(text, Loader=_NoAliases)  # noqa: S506 - a SafeLoader subclass
+        except yaml.YAMLError as exc:
+            mark = getattr(exc, "problem_mark", None)
+            where = f" (line {mark.line + 1})" if mark is not None else ""
+            raise CalibrationFormatError(f"{source}: not valid YAML{where}") from None
+        if not isinstance(data, Mapping):
+            raise CalibrationFormatError(f"{source}: expected a calibration set mapping, got {type(data).__name__}")
+        return cls.from_dict(data, source=source)
 
     # -- derivation ----------------------------------------------------------------
     def with_provenance(self, procedures=(), sessions=()) -> CalibrationSet:

@@ -1,4 +1,10 @@
-"""Differences between two calibration sets, coefficient by coefficient, in units of sigma."""
+"""Differences between two calibration sets, coefficient by coefficient, in units of sigma.
+
+A change is measured in sigma only where *both* versions observed the coefficient (finite
+sigma on both sides). A coefficient one version did not observe (sigma null: its value is the
+prior, zero) is its own state, "not observed in A" / "not observed in B", never a change in
+sigma: comparing an estimate with a prior says nothing about the unit.
+"""
 
 from __future__ import annotations
 
@@ -10,13 +16,23 @@ from workbench.calset import TRIADS, CalibrationSet
 
 _FIELDS = ("bias", "scale_misalignment", "nonlinearity", "g_sensitivity")
 
+CHANGED = "changed"  # both observed: change_in_sigma is finite
+NOT_OBSERVED_A = "not observed in A"  # the old version did not observe it (sigma null)
+NOT_OBSERVED_B = "not observed in B"  # the new version did not observe it
+NOT_OBSERVED = "not observed in A or B"
+ONLY_A = "only in A"  # a triad / field one set does not have at all
+ONLY_B = "only in B"
+
 
 @dataclass(frozen=True)
 class DiffRow:
-    """One coefficient that differs: ``change_in_sigma`` = (new - old) / sqrt(s_old^2 + s_new^2).
+    """One coefficient that differs between set A (old) and B (new), SI values.
 
-    ``change_in_sigma`` is NaN when neither set observed the coefficient's uncertainty.
-    ``index`` is the element index within the field, e.g. ``(0, 1)`` for M[0, 1].
+    ``state`` is one of :data:`CHANGED`, :data:`NOT_OBSERVED_A`, :data:`NOT_OBSERVED_B`,
+    :data:`NOT_OBSERVED`, :data:`ONLY_A`, :data:`ONLY_B`. ``change_in_sigma`` =
+    (new - old) / sqrt(s_old^2 + s_new^2) only in state ``changed`` (NaN otherwise), ``sigma``
+    that combined sigma (NaN otherwise). ``index`` is the element index within the field,
+    e.g. ``(0, 1)`` for M[0, 1].
     """
 
     triad: str
@@ -26,6 +42,12 @@ class DiffRow:
     new: float
     sigma: float
     change_in_sigma: float
+    state: str = CHANGED
+
+    @property
+    def observed_in_both(self) -> bool:
+        """True when both versions observed the coefficient (the change in sigma is meaningful)."""
+        return self.state == CHANGED
 
 
 def _field_pairs(a: CalibrationSet, b: CalibrationSet):
@@ -45,21 +67,32 @@ def _field_pairs(a: CalibrationSet, b: CalibrationSet):
                     yield triad, f"thermal.{f}", va, vb, ta.sigma_of(f"thermal.{f}"), tb.sigma_of(f"thermal.{f}")
 
 
-def diff_sets(a: CalibrationSet, b: CalibrationSet, rtol: float = 0.0) -> list[DiffRow]:
-    """Coefficients that differ between set ``a`` (old) and ``b`` (new), largest change first.
+def _state(sa: float, sb: float) -> str:
+    if np.isfinite(sa) and np.isfinite(sb):
+        return CHANGED
+    if np.isfinite(sb):
+        return NOT_OBSERVED_A
+    return NOT_OBSERVED_B if np.isfinite(sa) else NOT_OBSERVED
 
-    Triads present in only one set are reported as a row with NaN values for the missing side.
+
+def diff_sets(a: CalibrationSet, b: CalibrationSet, rtol: float = 0.0) -> list[DiffRow]:
+    """Coefficients that differ between set ``a`` (old) and ``b`` (new).
+
+    Changes observed in both versions come first, largest |change in sigma| first; then the
+    coefficients not observed in one or both versions, then triads present in only one set.
     """
     rows: list[DiffRow] = []
     for triad, f, va, vb, sa, sb in _field_pairs(a, b):
-        sigma = np.sqrt(np.nan_to_num(sa, nan=0.0) ** 2 + np.nan_to_num(sb, nan=0.0) ** 2)
-        sigma = np.where(np.isfinite(sa) | np.isfinite(sb), sigma, np.nan)
         for idx in zip(*np.nonzero(~np.isclose(va, vb, rtol=rtol, atol=0.0))):
-            s = float(sigma[idx])
-            change = (vb[idx] - va[idx]) / s if s > 0 else np.nan
-            rows.append(DiffRow(triad, f, tuple(int(i) for i in idx), float(va[idx]), float(vb[idx]), s, float(change)))
+            state = _state(float(sa[idx]), float(sb[idx]))
+            s = float(np.hypot(sa[idx], sb[idx])) if state == CHANGED else np.nan
+            change = (vb[idx] - va[idx]) / s if state == CHANGED and s > 0 else np.nan
+            rows.append(DiffRow(triad, f, tuple(int(i) for i in idx), float(va[idx]), float(vb[idx]), s,
+                                float(change), state))
     for triad in TRIADS:
         if (triad in a.triads) != (triad in b.triads):
-            rows.append(DiffRow(triad, "(triad)", (), np.nan if triad not in a.triads else 1.0,
-                                np.nan if triad not in b.triads else 1.0, np.nan, np.nan))
-    return sorted(rows, key=lambda r: -abs(r.change_in_sigma) if np.isfinite(r.change_in_sigma) else 0.0)
+            rows.append(DiffRow(triad, "(triad)", (), np.nan, np.nan, np.nan, np.nan,
+                                ONLY_A if triad in a.triads else ONLY_B))
+    order = {CHANGED: 0, NOT_OBSERVED_A: 1, NOT_OBSERVED_B: 1, NOT_OBSERVED: 2, ONLY_A: 3, ONLY_B: 3}
+    return sorted(rows, key=lambda r: (order[r.state],
+                                       -abs(r.change_in_sigma) if np.isfinite(r.change_in_sigma) else 0.0))

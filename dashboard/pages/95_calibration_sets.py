@@ -1,9 +1,11 @@
 """Calibration sets: list per unit, show one, diff two versions (change in sigma), approve, download.
 
-Coefficients are shown in lab units (``workbench.units.DISPLAY``: bias in °/h, mg, µT; scale
-factor and misalignment in ppm); the diff is ``workbench.diff.diff_sets`` with
-``change_in_sigma = (new - old) / sqrt(sigma_old² + sigma_new²)`` highlighted above 1 and 3.
-Downloads are produced by every exporter in ``workbench.registry.exporters()``.
+Coefficients are shown in the lab units of ``workbench.units.QUANTITIES`` through
+``workbench.coefficients`` (the rows ``workbench sets show`` and the certificate print); the
+diff is ``workbench.diff.diff_sets``: ``change_in_sigma = (new - old) / sqrt(sigma_old² +
+sigma_new²)`` where both versions observed a coefficient (highlighted above 1 and 3), and
+"not observed in A / B" as its own state otherwise. Downloads are produced by every exporter
+in ``workbench.registry.exporters()``.
 """
 
 import json
@@ -13,68 +15,44 @@ import pandas as pd
 import streamlit as st
 
 from dashboard import common
-from workbench import registry, units
-from workbench.diff import diff_sets
+from workbench import coefficients, registry
+from workbench.diff import NOT_OBSERVED, NOT_OBSERVED_A, NOT_OBSERVED_B, diff_sets
 from workbench.errors import ExportError, WorkbenchError
 
 TITLE = "Calibration sets"
-FIELD_UNITS = {"scale_misalignment": "ppm", "nonlinearity": None, "g_sensitivity": None}
 WARN_SIGMA, ALARM_SIGMA = 1.0, 3.0  # |change| in sigma highlighted orange / red
 
 
-def field_unit(triad: str, field: str) -> str | None:
-    """Lab unit a coefficient is shown in (None: shown in SI)."""
-    if field == "bias":
-        return units.DISPLAY.get(triad, {}).get("bias")
-    return FIELD_UNITS.get(field)
-
-
-def show_value(triad: str, field: str, value: float) -> str:
-    unit = field_unit(triad, field)
-    if value is None or not np.isfinite(value):
-        return "—"
-    return f"{units.to_unit(value, unit):.6g}" if unit else f"{value:.6g}"
-
-
 def coefficient_table(calset) -> pd.DataFrame:
-    """Every coefficient of a set with its sigma in lab units (sigma 'not observed' where NaN)."""
-    rows = []
-    for triad, tc in calset.triads.items():
-        for field in ("bias", "scale_misalignment", "nonlinearity", "g_sensitivity"):
-            value = getattr(tc.model, field)
-            if value is None or (field == "nonlinearity" and not np.any(value) and field not in tc.sigma):
-                continue
-            sigma = tc.sigma_of(field)
-            unit = field_unit(triad, field)
-            for idx in np.ndindex(value.shape):
-                rows.append({"triad": triad, "field": field, "index": str(list(idx)),
-                             "value": show_value(triad, field, float(value[idx])),
-                             "sigma": show_value(triad, field, float(sigma[idx])) if np.isfinite(sigma[idx])
-                             else "not observed",
-                             "unit": units.label(unit) if unit else "SI"})
-    return pd.DataFrame(rows)
+    """Every coefficient of a set with its 1-sigma in lab units ('not observed' where NaN)."""
+    return pd.DataFrame([{"triad": r.triad, "field": r.field, "index": str(list(r.index)), "coefficient": r.name,
+                          "value": coefficients.value_text(r.value, 6), "sigma": coefficients.sigma_text(r.sigma),
+                          "unit": r.unit}
+                         for t in calset.triads for r in coefficients.triad_rows(calset, t)])
 
 
 def noise_table(calset) -> pd.DataFrame:
-    """Noise terms per triad and axis (SI; 'not observed' where null)."""
-    rows = []
-    for triad, terms in calset.noise.items():
-        for term in terms:
-            v = calset.noise_term(triad, term)
-            rows.append({"triad": triad, "term": term,
-                         **{ax: ("not observed" if not np.isfinite(x) else f"{x:.4g}") for ax, x in zip("xyz", v)}})
-    return pd.DataFrame(rows)
+    """Noise terms per triad, term and axis in lab units with their 95 % intervals ('not observed' where null)."""
+    return pd.DataFrame([{"triad": r.triad, "term": r.term, "axis": r.axis,
+                          "value": "not observed" if not np.isfinite(r.value) else f"{r.value:.4g}",
+                          "95 % interval": coefficients.ci_text(r.ci95), "unit": r.unit}
+                         for r in coefficients.noise_rows(calset)])
 
 
 def diff_table(old, new) -> pd.DataFrame:
-    """Rows of ``diff_sets(old, new)`` in lab units."""
+    """Rows of ``diff_sets(old, new)`` in lab units, with their state (changed / not observed in A or B)."""
     rows = []
     for r in diff_sets(old, new):
-        unit = field_unit(r.triad, r.field)
+        if r.field == "(triad)":
+            rows.append({"triad": r.triad, "field": r.field, "index": "", "coefficient": "(whole triad)", "state": r.state, "old": "", "new": "",
+                         "σ": "", "unit": "", "change (σ)": np.nan})
+            continue
+        label, f = coefficients.element_unit(r.triad, r.field, r.index)
         rows.append({"triad": r.triad, "field": r.field, "index": str(list(r.index)),
-                     "old": show_value(r.triad, r.field, r.old), "new": show_value(r.triad, r.field, r.new),
-                     "sigma": show_value(r.triad, r.field, r.sigma), "unit": units.label(unit) if unit else "SI",
-                     "change (σ)": r.change_in_sigma})
+                     "coefficient": coefficients.element_name(r.field, r.index), "state": r.state,
+                     "old": "not observed" if r.state in (NOT_OBSERVED_A, NOT_OBSERVED) else coefficients.value_text(r.old / f, 6),
+                     "new": "not observed" if r.state in (NOT_OBSERVED_B, NOT_OBSERVED) else coefficients.value_text(r.new / f, 6),
+                     "σ": coefficients.value_text(r.sigma / f, 3), "unit": label, "change (σ)": r.change_in_sigma})
     return pd.DataFrame(rows)
 
 
@@ -110,6 +88,9 @@ versions = list(by_version)
 
 tab_show, tab_diff = st.tabs(["Show, approve, download", "Diff two versions"])
 with tab_show:
+    if st.session_state.get("cal.version.serial") != serial:  # another unit: open its newest version
+        st.session_state.pop("cal.version", None)
+        st.session_state["cal.version.serial"] = serial
     version = st.selectbox("Version", versions, key="cal.version")
     info = by_version[version]
     try:
@@ -122,7 +103,7 @@ with tab_show:
     st.subheader("Coefficients")
     st.dataframe(coefficient_table(calset), hide_index=True)
     if calset.noise:
-        st.subheader("Noise terms (SI)")
+        st.subheader("Noise terms")
         st.dataframe(noise_table(calset), hide_index=True)
 
     st.subheader("Approval")
@@ -165,8 +146,8 @@ with tab_diff:
         st.info("Only one version: nothing to compare.")
     else:
         c1, c2 = st.columns(2)
-        old_v = c1.selectbox("Old version", versions, index=1, key="cal.old")
-        new_v = c2.selectbox("New version", versions, index=0, key="cal.new")
+        old_v = c1.selectbox("Old version", versions, index=1, key=f"cal.old.{serial}")
+        new_v = c2.selectbox("New version", versions, index=0, key=f"cal.new.{serial}")
         try:
             table = diff_table(db.get_set(by_version[old_v].id), db.get_set(by_version[new_v].id))
         except WorkbenchError as exc:
@@ -176,7 +157,9 @@ with tab_diff:
             st.success("The two versions have identical coefficients.")
         elif table is not None:
             n_alarm = int((table["change (σ)"].abs() > ALARM_SIGMA).sum())
-            st.caption(f"{len(table)} coefficients differ; {n_alarm} by more than {ALARM_SIGMA:g} σ "
-                       f"(σ = √(σ_old² + σ_new²); gray = not observed).")
+            n_changed = int(table["change (σ)"].notna().sum())
+            st.caption(f"{len(table)} coefficients differ: {n_changed} observed in both versions, {n_alarm} of them "
+                       f"by more than {ALARM_SIGMA:g} σ (σ = √(σ_old² + σ_new²)); {len(table) - n_changed} not "
+                       "observed in one version (A = old, B = new): no change in σ is stated for those.")
             st.dataframe(table.style.map(_highlight, subset=["change (σ)"]).format({"change (σ)": "{:+.2f}"}),
                          hide_index=True)

@@ -56,3 +56,59 @@ def test_bad_file_leaves_store_unchanged(db, tmp_path, capsys):
     assert "bad.json" in capsys.readouterr().err
     assert Store(db).list_sets() == []
     assert main(["--db", f"sqlite:///{tmp_path}/no/such/dir.db", "sets", "list"]) == 2
+
+
+def test_sets_export_yaml_reads_back_with_sets_show(db, tmp_path, capsys):
+    """`sets export --format yaml` is a file `sets show` (and CalibrationSet.load) reads back unchanged."""
+    from workbench.calset import CalibrationSet
+
+    s1 = a_set(bias=0.01)
+    Store(db).add_set(s1)
+    out_file = tmp_path / "s1.yaml"
+    assert main(["sets", "export", s1.id, "--format", "yaml", "--out", str(out_file)]) == 0
+    assert CalibrationSet.load(out_file).sha256() == s1.sha256()
+    capsys.readouterr()
+    assert main(["sets", "show", str(out_file)]) == 0
+    assert s1.id in capsys.readouterr().out
+
+
+def test_sets_yaml_with_an_alias_is_refused(db, tmp_path, capsys):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("a: &x [1, 2]\nb: *x\n")
+    assert main(["sets", "show", str(bad)]) == 2
+    assert "aliases" in capsys.readouterr().err
+
+
+def test_sets_show_and_diff_fit_80_columns(db, tmp_path, capsys, monkeypatch):
+    """At 80 columns every line fits, in lab units, and the diff says 'not observed' instead of a change in sigma."""
+    import numpy as np
+
+    from workbench.calset import CalibrationSet, TriadCalibration, Unit
+    from workbench.cli import out
+    from workbench.model import ThermalModel, TriadModel
+
+    monkeypatch.setattr(out, "_width", 80)
+    th = ThermalModel(23.0, np.array([[0.0, 1e-5, 1e-7]] * 3), np.array([[0.0, 1e-5]] * 3))
+    gyro = TriadCalibration(TriadModel(bias=[1e-4, 2e-4, 0.0], scale_misalignment=np.full((3, 3), 1e-4),
+                                       nonlinearity=[1e-6, 0, 0], g_sensitivity=np.full((3, 3), 1e-5), thermal=th),
+                            {"bias": np.array([1e-6, 1e-6, np.nan]), "nonlinearity": np.full(3, 1e-7)})
+    name = "a-long-serial-number-of-a-unit/with/a/path-like/part-0123456789-0123456789"
+    a = CalibrationSet(Unit(name, "industrial_mems"), {"gyro": gyro},
+                       noise={"gyro": {"arw": [1e-4, None, 1e-4], "arw_ci95": [[9e-5, 1.1e-4], None, [9e-5, 1.1e-4]]}})
+    b_gyro = TriadCalibration(TriadModel(bias=[1.1e-4, 0.0, 3e-4]), {"bias": np.array([1e-6, np.nan, 1e-6])})
+    b = CalibrationSet(Unit(name, "industrial_mems"), {"gyro": b_gyro})
+    Store(db).add_set(a)
+    pb = b.save(tmp_path / "b.json")
+    capsys.readouterr()
+    assert main(["sets", "show", a.id]) == 0
+    shown = capsys.readouterr().out
+    assert max(len(line) for line in shown.splitlines()) <= 80
+    for text in ("°/h", "mrad", "ppm/(°/s)", "°/h/g", "°/h/°C²", "°/√h", "misalignment M[x,y]", "not observed"):
+        assert text in shown, text
+    assert "deg/h" not in shown and "1/SI" not in shown
+    assert main(["sets", "list"]) == 0
+    assert name in capsys.readouterr().out  # not truncated: the list is key: value lines
+    assert main(["sets", "diff", a.id, str(pb)]) == 0
+    diff = capsys.readouterr().out
+    assert max(len(line) for line in diff.splitlines()) <= 80
+    assert "not observed in B" in diff and "not observed in A" in diff and "+7.07" in diff  # 1e-5 / sqrt(2) / 1e-6

@@ -21,8 +21,9 @@ from workbench.errors import WorkbenchError
 
 app = typer.Typer(no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False,
                   help="Calibration workbench for inertial and magnetic sensors.")
-err = Console(stderr=True)
-out = Console()
+# no automatic highlighting: digits inside paths and ids are not numbers to colour
+err = Console(stderr=True, highlight=False)
+out = Console(highlight=False)
 
 
 def _version(value: bool) -> None:

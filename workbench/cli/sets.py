@@ -8,14 +8,25 @@ from pathlib import Path
 import numpy as np
 import typer
 from rich import box
+from rich.markup import escape
 from rich.table import Table
 
 from workbench.calset import CalibrationSet, atomic_write_text, merge
 from workbench.cli import out
-from workbench.diff import diff_sets
+from workbench.coefficients import (
+    TRIAD_TITLES,
+    ci_text,
+    element_name,
+    element_unit,
+    noise_rows,
+    sigma_text,
+    thermal_reference,
+    triad_rows,
+    value_text,
+)
+from workbench.diff import NOT_OBSERVED, NOT_OBSERVED_A, NOT_OBSERVED_B, ONLY_A, ONLY_B, diff_sets
 from workbench.registry import exporter, exporters
 from workbench.store import Store
-from workbench.units import DISPLAY, fmt, to_unit
 
 sets_app = typer.Typer(no_args_is_help=True, help="Calibration sets: list, show, diff, export, approve, merge.")
 
@@ -23,7 +34,7 @@ sets_app = typer.Typer(no_args_is_help=True, help="Calibration sets: list, show,
 def load_set_ref(ref: str) -> CalibrationSet:
     """A set from a calibration JSON file path or a stored set's id (or unique id prefix)."""
     p = Path(ref)
-    if p.suffix == ".json" or p.exists():
+    if p.suffix in (".json", ".yaml", ".yml") or p.exists():
         return CalibrationSet.load(p)
     return Store().get_set(ref)
 
@@ -40,69 +51,54 @@ def list_sets(unit: str = typer.Option(None, "--unit", help="Only this unit seri
         return
     if format != "table":
         raise typer.BadParameter(f"--format {format!r}: expected table or json")
-    t = Table(box=box.SIMPLE_HEAD, padding=(0, 1), pad_edge=False, collapse_padding=True, show_edge=False)
-    for name in ("id", "unit", "v", "created (UTC)"):
-        t.add_column(name, no_wrap=True)
-    t.add_column("procedures", min_width=16)
-    t.add_column("approved by", min_width=9)
     for i in infos:
-        t.add_row(i.id[:8], f"{i.serial} ({i.model})" if i.model and i.model not in i.serial else i.serial,
-                  str(i.version), i.created[:16].replace("T", " "), ", ".join(i.procedures), i.approved_by or "")
-    out.print(t)
+        unit = f"{i.serial} ({i.model})" if i.model and i.model not in i.serial else i.serial
+        out.print(f"[bold]{i.id[:8]}[/]  {escape(unit)}  v{i.version}  {i.created[:16].replace('T', ' ')} UTC  "
+                  f"approved by {escape(i.approved_by) if i.approved_by else '—'}")
+        out.print(f"          procedures: {', '.join(i.procedures) or '—'}")
 
 
-def _triad_table(cal: CalibrationSet, triad: str) -> Table:
-    tc = cal.triads[triad]
-    unit = DISPLAY[triad]["bias"]
-    t = Table(f"{triad}", "x", "y", "z", title=f"{triad} ({'hard iron' if triad == 'mag' else 'bias'} in "
-                                                    f"{unit}, scale factor ppm, misalignment mrad)")
-    b, bs = tc.model.bias, tc.sigma_of("bias")
-    t.add_row("bias ± 1σ", *[f"{to_unit(b[i], unit):.4g} ± {_sig(bs[i], unit)}" for i in range(3)])
-    m, ms = tc.model.scale_misalignment, tc.sigma_of("scale_misalignment")
-    t.add_row("scale factor ± 1σ", *[f"{m[i, i] * 1e6:.1f} ± {_sig(ms[i, i], 'ppm')}" for i in range(3)])
-    for i in range(3):
-        t.add_row(f"misalignment {'xyz'[i]}-row (mrad)", *[("—" if i == j else f"{m[i, j] * 1e3:.3f} ± {_sig(ms[i, j], 'mrad')}")
-                                                for j in range(3)])
-    if np.any(tc.model.nonlinearity):
-        t.add_row("nonlinearity (1/SI)", *[f"{v:.3g}" for v in tc.model.nonlinearity])
-    if tc.model.g_sensitivity is not None:
-        g = tc.model.g_sensitivity
-        t.add_row("g-sensitivity diag (°/h/g)", *[f"{to_unit(g[i, i], 'deg/h') * 9.80665:.3g}" for i in range(3)])
-    if tc.model.thermal is not None:
-        t.add_row("thermal t_ref (°C)", f"{tc.model.thermal.t_ref_c:g}", "", "")
-    if triad == "mag":
-        t.add_row("field norm (µT)", f"{tc.field_norm_ut:.3f}", "", "")
+def _table(*columns: str, title: str | None = None) -> Table:
+    """A compact table that fits 80 columns: no outer box, cells fold instead of being cut."""
+    t = Table(box=box.SIMPLE_HEAD, padding=(0, 1), pad_edge=False, collapse_padding=True, show_edge=False,
+              title=title, title_justify="left")
+    for c in columns:
+        t.add_column(c, overflow="fold")
     return t
 
 
-def _sig(value: float, unit: str) -> str:
-    if not np.isfinite(value):
-        return "not observed"
-    scale = {"ppm": 1e-6, "mrad": 1e-3}.get(unit)
-    return f"{value / scale:.2g}" if scale else f"{to_unit(value, unit):.2g}"
+def _triad_table(cal: CalibrationSet, triad: str) -> Table:
+    """One row per coefficient (name, value ± 1σ, unit) in the lab units of ``workbench.units``."""
+    t = _table("coefficient", "value ± 1σ", "unit", title=f"{TRIAD_TITLES[triad]} ({triad})")
+    for r in triad_rows(cal, triad):
+        sig = "± " + sigma_text(r.sigma) if r.observed else "(σ not observed)"
+        t.add_row(escape(r.name), f"{value_text(r.value)} {sig}", r.unit)
+    return t
 
 
 @sets_app.command("show")
-def show(ref: str = typer.Argument(..., help="Set id (or prefix) or calibration JSON file."),
+def show(ref: str = typer.Argument(..., help="Set id (or prefix), or a calibration JSON / YAML file."),
          as_json: bool = typer.Option(False, "--json", help="Print the canonical JSON.")) -> None:
     """Show a calibration set in lab units (or as JSON)."""
     cal = load_set_ref(ref)
     if as_json:
         out.print_json(cal.to_json())
         return
-    out.print(f"[bold]set {cal.id}[/]  unit {cal.unit.serial} ({cal.unit.model})  created {cal.created}")
+    out.print(f"[bold]set {cal.id}[/]")
+    out.print(f"unit {escape(cal.unit.serial)} ({escape(cal.unit.model)}), created {cal.created}")
     out.print(f"procedures: {', '.join(cal.provenance.procedures) or '—'}; sessions: "
               f"{len(cal.provenance.sessions)}; software {cal.provenance.software_version}")
     for triad in cal.triads:
         out.print(_triad_table(cal, triad))
-    for triad, terms in cal.noise.items():
-        t = Table("noise term", "x", "y", "z", title=f"{triad} noise")
-        for term, values in terms.items():
-            if term.endswith("_ci95"):
-                continue
-            unit = DISPLAY[triad].get("noise_white" if term in ("arw", "vrw") else term)
-            t.add_row(f"{term} ({unit})" if unit else term,
-                      *[fmt(v, unit) if unit else ("not observed" if v is None else f"{v:.3g}") for v in values])
+        ref_text = thermal_reference(cal, triad)
+        if ref_text:
+            out.print(f"  thermal: {ref_text}")
+    rows = noise_rows(cal)
+    if rows:
+        t = _table("noise term", "axis", "value", "95 % interval", "unit", title="Noise (Allan variance)")
+        for r in rows:
+            t.add_row(f"{r.triad} {r.term}", r.axis, "not observed" if not np.isfinite(r.value) else f"{r.value:.4g}",
+                      ci_text(r.ci95), r.unit)
         out.print(t)
 
 
@@ -113,14 +109,24 @@ def diff(old: str = typer.Argument(..., help="Older set: id or JSON file."),
     """Coefficient-by-coefficient changes, in units of their combined sigma."""
     a, b = load_set_ref(old), load_set_ref(new)
     rows = diff_sets(a, b)
-    t = Table("triad", "field", "index", "old", "new", "change / σ")
+    t = _table("coefficient", "A (old)", "B (new)", "unit", "change / σ")
     for r in rows[:limit]:
-        flag = "bold red" if np.isfinite(r.change_in_sigma) and abs(r.change_in_sigma) > 3 else ""
-        t.add_row(r.triad, r.field, str(r.index), f"{r.old:.6g}", f"{r.new:.6g}",
-                  "σ not observed" if not np.isfinite(r.change_in_sigma) else f"{r.change_in_sigma:+.2f}",
-                  style=flag)
-    out.print(f"{len(rows)} coefficient(s) differ between {a.id[:8]} and {b.id[:8]}")
+        if r.field == "(triad)":
+            t.add_row(f"{r.triad} (whole triad)", "absent" if r.state == ONLY_B else "present",
+                      "absent" if r.state == ONLY_A else "present", "", r.state)
+            continue
+        label, f = element_unit(r.triad, r.field, r.index)
+        old_text = "not observed" if r.state in (NOT_OBSERVED_A, NOT_OBSERVED) else value_text(r.old / f)
+        new_text = "not observed" if r.state in (NOT_OBSERVED_B, NOT_OBSERVED) else value_text(r.new / f)
+        change = f"{r.change_in_sigma:+.2f}" if r.observed_in_both else r.state
+        t.add_row(escape(f"{r.triad} {element_name(r.field, r.index)}"), old_text, new_text, label, change,
+                  style="bold red" if r.observed_in_both and abs(r.change_in_sigma) > 3 else "")
+    n_both = sum(r.observed_in_both for r in rows)
+    out.print(f"{len(rows)} coefficient(s) differ between A = {a.id[:8]} and B = {b.id[:8]}: {n_both} observed in "
+              f"both (change in σ = (B − A) / √(σ_A² + σ_B²)), {len(rows) - n_both} not observed in one of them")
     out.print(t)
+    if len(rows) > limit:
+        out.print(f"… {len(rows) - limit} more (--limit)")
 
 
 @sets_app.command("export")
