@@ -4,7 +4,7 @@ Navigation frame is NED (north, east, down); body frame is x forward, y right, z
 
 Public: ``WGS84_A``, ``WGS84_F``, ``WGS84_E2``, ``EARTH_RATE``, ``GM``,
 :func:`normal_gravity`, :func:`gravity_ned`, :func:`earth_rate_ned`,
-:func:`horizontal_earth_rate`, :func:`rz`.
+:func:`horizontal_earth_rate`, :func:`radii`, :func:`rz`.
 
 References: NIMA TR8350.2 (WGS-84) eq. 4-1 (Somigliana) and 4-3 (height correction);
 thesis (shared/seeds/000_...) sec. 3.3 for the NED mechanisation quantities.
@@ -53,6 +53,13 @@ def earth_rate_ned(latitude: float) -> np.ndarray:
 def horizontal_earth_rate(latitude: float) -> float:
     """Horizontal (north) component of the Earth rate, ``Omega_e cos(latitude)``, rad/s."""
     return float(EARTH_RATE * np.cos(latitude))
+
+
+def radii(latitude: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Meridian and normal (prime-vertical) radii of curvature ``(R_M, R_N)``, m, at geodetic ``latitude`` rad."""
+    s2 = np.sin(latitude) ** 2
+    rn = WGS84_A / np.sqrt(1.0 - WGS84_E2 * s2)
+    return rn * (1.0 - WGS84_E2) / (1.0 - WGS84_E2 * s2), rn
 
 
 def rz(angle: float | np.ndarray) -> Rotation:

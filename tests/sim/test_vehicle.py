@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from workbench.earth import earth_rate_ned
+from workbench.earth import earth_rate_ned, radii
 from workbench.errors import WorkbenchError
 from workbench.grades import draw_unit, load_spec
 from workbench.nav.ins import mechanise
 from workbench.nav.road import gps_fixes, odometer_distance
 from workbench.session import Site, load_session
-from workbench.sim.trajectory import generate, leg_from_dict, radii, s_curve
+from workbench.sim.trajectory import generate, leg_from_dict, s_curve
 from workbench.sim.vehicle import drive, drive_config, load_truth_trajectory
 
 ROAD = [dict(kind="stop", duration_s=20), dict(kind="straight", duration_s=40, speed_mps=15),

@@ -168,6 +168,9 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
     proc = procedure(procedure_name)
     # a number-valued option must be a number (one that also takes a word, e.g. 'auto', is checked below)
     options = parse_options(option, {o.name: o.default for o in declarations(proc) if not o.words})
+    if getattr(proc, "DRIVE", False):  # recorded on the simulated vehicle, not on the turntable
+        _run_drive(proc, spec, truth, cfg, seed, out_dir, options, store, calibration, dry_run)
+        return
     seq_options, analysis_options = split(proc, options)  # refuses a misspelt option before anything runs
     seq = proc.sequence(spec, **seq_options)
     _print_sequence(seq)
@@ -195,6 +198,24 @@ def _campaign_options(options: dict) -> dict[str, dict]:
     for name, opts in by_proc.items():
         split(procedure(name), opts)
     return by_proc
+
+
+def _run_drive(proc, spec, truth, cfg, seed: int, out_dir: Path | None, options: dict, store, calibration,
+               dry_run: bool) -> None:
+    """Drive the simulated vehicle for a land-navigation validation, then analyse the drive."""
+    seq_options, analysis_options = split(proc, options)  # refuses a misspelt option before anything runs
+    if cfg.driver != "sim":
+        raise ProcedureError(f"{proc.NAME}: a drive is simulated (--rig sim) or imported (workbench analyze)")
+    out.print(f"{proc.NAME}: simulated drive of {truth.serial} ({spec.name}), seed {seed}")
+    if dry_run:
+        return
+    out_dir = out_dir or _default_out(proc.NAME, truth.serial)
+    cal = _load_calibration(calibration)
+    if cal is None:
+        cal = _calibrate_first(spec, truth, cfg, seed, out_dir)
+    session = proc.record_drive(truth, seed, out_dir / "session", **seq_options)
+    result = run_analysis(proc, session, {**analysis_options, "calibration": cal}, out_dir, store)
+    _print_result(result, out_dir)
 
 
 def _needs_cal(proc) -> bool:

@@ -27,7 +27,7 @@ Rates and forces:
 neglected; gravity is normal gravity at the reference point).
 
 Public: :class:`Limits`, :class:`Leg`, :func:`leg_from_dict`, :func:`s_curve`,
-:class:`Trajectory`, :func:`generate`, :func:`radii`.
+:class:`Trajectory`, :func:`generate`.
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from workbench.earth import EARTH_RATE, WGS84_A, WGS84_E2, normal_gravity
+from workbench.earth import EARTH_RATE, normal_gravity, radii
 from workbench.errors import WorkbenchError
 
 
@@ -157,14 +157,6 @@ def _cumtrapz_em(y: np.ndarray, dy: np.ndarray, h: float) -> np.ndarray:
     """Cumulative integral from 0 with the Euler-Maclaurin corrected trapezoid (exact for cubics)."""
     inc = 0.5 * h * (y[1:] + y[:-1]) - h * h / 12.0 * (dy[1:] - dy[:-1])
     return np.concatenate([np.zeros((1,) + y.shape[1:]), np.cumsum(inc, axis=0)])
-
-
-def radii(lat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Meridian and normal (prime-vertical) radii of curvature, m (WGS-84)."""
-    s2 = np.sin(lat) ** 2
-    rn = WGS84_A / np.sqrt(1 - WGS84_E2 * s2)
-    rm = rn * (1 - WGS84_E2) / (1 - WGS84_E2 * s2)
-    return rm, rn
 
 
 def _skew_rows(v: np.ndarray) -> np.ndarray:

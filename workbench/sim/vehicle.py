@@ -39,7 +39,8 @@ import pandas as pd
 from workbench.calset import Unit, atomic_write_text
 from workbench.errors import WorkbenchError
 from workbench.session import Session, Site, StepRecord, write_session
-from workbench.sim.trajectory import Leg, Limits, Trajectory, radii, generate, leg_from_dict
+from workbench.earth import radii
+from workbench.sim.trajectory import Leg, Limits, Trajectory, generate, leg_from_dict
 
 GPS_FILE = "gps.parquet"  # the name workbench.nav.road.gps_fixes reads (docs/formats.md)
 
