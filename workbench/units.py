@@ -21,6 +21,7 @@ HOUR = 3600.0
 _FACTORS = {
     "rad/s": 1.0, "deg/s": DEG, "deg/h": DEG / HOUR, "rad": 1.0, "deg": DEG, "mrad": 1e-3,
     "arcsec": DEG / 3600.0,
+    "m": 1.0, "cm": 1e-2, "mm": 1e-3, "cm/s": 1e-2,
     "m/s^2": 1.0, "m/s": 1.0, "mm/s": 1e-3, "g": G0, "mg": G0 * 1e-3, "ug": G0 * 1e-6,
     "rad/s/sqrt(Hz)": 1.0, "deg/sqrt(h)": DEG / np.sqrt(HOUR), "deg/h/sqrt(Hz)": DEG / HOUR,
     "m/s^2/sqrt(Hz)": 1.0, "m/s/sqrt(h)": 1.0 / np.sqrt(HOUR), "ug/sqrt(Hz)": G0 * 1e-6,

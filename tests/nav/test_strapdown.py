@@ -7,7 +7,7 @@ from scipy.spatial.transform import Rotation
 
 from workbench.earth import earth_rate_ned, gravity_ned
 from workbench.nav.strapdown import (BlockPropagator, attitude_errors, coarse_level, from_rph, gain_weight,
-                                     sequential_update)
+                                     sequential_update, skew)
 
 LAT = np.radians(40.8)
 
@@ -65,3 +65,19 @@ def test_batch_and_sequential_updates_agree():
     np.testing.assert_allclose(Pb, Ps, atol=1e-10)
     np.testing.assert_allclose(xb, xs, atol=1e-10)
     assert np.all(w == 1.0)
+
+
+def test_expm_small_matches_scipy():
+    # the Van Loan block of a 15-state INS error model over 1 s (norm ~10, scaled and squared) and a
+    # random matrix: against scipy's Pade expm, to the 1e-12 a double-precision series gives
+    from scipy.linalg import expm
+
+    from workbench.nav.strapdown import expm_small
+
+    rng = np.random.default_rng(3)
+    a = rng.normal(0.0, 1.0, (18, 18))
+    f = np.zeros((15, 15))
+    f[0:3, 3:6] = np.eye(3)
+    f[3:6, 6:9] = -skew(np.array([0.0, 0.0, -9.81]))
+    for m in (a, f, 0.01 * a):
+        np.testing.assert_allclose(expm_small(m), expm(m), rtol=1e-11, atol=1e-12 * np.abs(expm(m)).max())

@@ -13,7 +13,8 @@ propagated with one prefix product (log2 n vectorised compositions) instead of a
 
 Public: :class:`BlockPropagator`, :func:`with_previous`, :func:`skew`, :func:`coarse_level`,
 :func:`from_rph`, :func:`euler_rph`,
-:func:`attitude_errors`, :func:`rotation_error_ned`, :func:`gain_weight`, :func:`sequential_update`.
+:func:`attitude_errors`, :func:`rotation_error_ned`, :func:`gain_weight`, :func:`sequential_update`,
+:func:`van_loan`, :func:`expm_small`.
 
 References: thesis (shared/seeds/000_...) eq. 3.6, 3.38-3.45, 3.54-3.56, 3.58-3.60;
 paper 001 (shared/seeds/001_...) eq. 46-47.
@@ -174,3 +175,41 @@ def sequential_update(P: np.ndarray, H: np.ndarray, z: np.ndarray, r: np.ndarray
 def with_previous(x: np.ndarray, i0: int, i1: int) -> np.ndarray:
     """Rows ``i0 - 1 .. i1 - 1`` of ``x`` (the sample before a block and the block), repeating row 0 at the start."""
     return x[max(i0 - 1, 0):i1] if i0 > 0 else np.vstack([x[:1], x[:i1]])
+
+
+def van_loan(F: np.ndarray, Q: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray]:
+    """Transition matrix ``exp(F T)`` and discrete process noise ``int exp(F s) Q exp(F s)^T ds`` over T (Van Loan's method).
+
+    ``F`` (n, n) the continuous system matrix, ``Q`` (n, n) the continuous noise covariance ``G Qc G^T``.
+    The exponential is :func:`expm_small`'s.
+    """
+    n = F.shape[0]
+    M = np.zeros((2 * n, 2 * n))
+    M[:n, :n] = -F
+    M[:n, n:] = Q
+    M[n:, n:] = F.T
+    E = expm_small(M * T)
+    phi = E[n:, n:].T
+    qd = phi @ E[:n, n:]
+    return phi, 0.5 * (qd + qd.T)
+
+
+def expm_small(a: np.ndarray, terms: int = 12) -> np.ndarray:
+    """Matrix exponential of a small (n, n) matrix: Taylor series after scaling, then squaring.
+
+    ``a`` is scaled by ``2^-s`` to an infinity norm below 0.5, where ``terms`` = 12 Taylor terms
+    leave a relative error below ``0.5^13 / 13! ~ 2e-14``, and squared back ``s`` times. Only matrix
+    products: ``scipy.linalg.expm``'s Pade solve costs milliseconds on a machine whose BLAS threads
+    are oversubscribed, which a covariance analysis doing thousands of them cannot afford.
+    """
+    norm = float(np.max(np.sum(np.abs(a), axis=1)))
+    s = max(0, int(np.ceil(np.log2(norm / 0.5)))) if norm > 0.5 else 0
+    x = a / 2.0 ** s
+    out = np.eye(len(a))
+    term = np.eye(len(a))
+    for k in range(1, terms + 1):
+        term = term @ x / k
+        out = out + term
+    for _ in range(s):
+        out = out @ out
+    return out

@@ -43,14 +43,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import expm
 from scipy.spatial.transform import Rotation
 
 from workbench.earth import earth_rate_ned, gravity_ned
 from workbench.errors import AnalysisError
 from workbench.nav.compensate import ImuSamples, ProcessNoise
 from workbench.nav.strapdown import (BlockPropagator, coarse_level, euler_rph, from_rph, sequential_update, skew,
-                                     with_previous)
+                                     van_loan, with_previous)
 
 N_STATES = 15
 P, V, A, BA, BG = (slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), slice(12, 15))
@@ -167,19 +166,6 @@ def _continuous_model(c: np.ndarray, f_n: np.ndarray, w_ie: np.ndarray, noise: P
     return F, Q
 
 
-def _discretise(F: np.ndarray, Q: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray]:
-    """Transition matrix and discrete process noise over T (Van Loan's method)."""
-    n = F.shape[0]
-    M = np.zeros((2 * n, 2 * n))
-    M[:n, :n] = -F
-    M[:n, n:] = Q
-    M[n:, n:] = F.T
-    E = expm(M * T)
-    phi = E[n:, n:].T
-    qd = phi @ E[:n, n:]
-    return phi, 0.5 * (qd + qd.T)
-
-
 def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: float,
           height: float = 0.0, config: ZuptConfig = ZuptConfig()) -> ZuptResult:
     """Run the ZUPT fine alignment on static ``samples`` (gyro rad/s, accel m/s^2, body frame).
@@ -221,7 +207,7 @@ def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: fl
     # corrected attitude would leak spurious information into the unobservable
     # tilt / horizontal accel-bias direction. The unit is static, so they are constant.
     F, Q = _continuous_model(ci, np.array([0.0, 0.0, -g_meas]), w_ie, noise)
-    phi, qd = _discretise(F, Q, n_blk * dt)
+    phi, qd = van_loan(F, Q, n_blk * dt)
     prop = BlockPropagator(n_blk, dt, w_ie)
     c = ci
     pos, vel = np.zeros(3), np.zeros(3)
