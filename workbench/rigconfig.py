@@ -60,6 +60,7 @@ class RigConfig:
     chamber: ChamberLimits
     options: Mapping = field(default_factory=dict)
     path: Path | None = None
+    reference_equipment: tuple[Mapping, ...] = ()  # name, model, serial, certificate, dates, traceability
 
 
 def magnetic_field_ned(intensity_ut: float, dip_deg: float, declination_deg: float) -> np.ndarray:
@@ -78,7 +79,8 @@ def _from_schema(f: RigFile) -> RigConfig:
                                 np.radians(tt.positioning_error_deg), tt.settle_s,
                                 np.radians(tt.encoder_resolution_deg))
     chamber = ChamberLimits(ch.min_c, ch.max_c, ch.max_ramp_c_per_min, ch.initial_c, ch.safe_c)
-    return RigConfig(f.name or f.driver, f.driver, site, field_ned, turntable, chamber, f.driver_options())
+    return RigConfig(f.name or f.driver, f.driver, site, field_ned, turntable, chamber, f.driver_options(),
+                     reference_equipment=tuple(r.model_dump() for r in f.reference_equipment))
 
 
 def rig_config_from_dict(d: Mapping, source: str = "<rig>") -> RigConfig:

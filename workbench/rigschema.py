@@ -264,6 +264,19 @@ class Hil(Section):
     speed: Positive = Field(1.0, description="simulated seconds per wall-clock second")
 
 
+class ReferenceInstrument(Section):
+    """A piece of reference equipment of the rig and its traceability, as a certificate states it."""
+
+    name: str = Field(description="what it is, e.g. 'rate table', 'chamber thermometer'")
+    model: str = Field("", description="maker and model")
+    serial: str = Field("", description="its serial number")
+    certificate: str = Field("", description="its own calibration certificate number")
+    calibrated: str = Field("", description="date of its last calibration (ISO 8601)")
+    due: str = Field("", description="date its next calibration is due")
+    traceability: str = Field(description="chain to the SI, e.g. 'INRIM via accredited lab 123'; "
+                                          "or why there is none (a simulation)")
+
+
 DRIVER_SECTIONS = ("table_controller", "chamber_controller", "imu_stream", "fixture", "hil")
 
 
@@ -281,6 +294,8 @@ class RigFile(Section):
     imu_stream: ImuStream | None = Field(None, description="real: the unit's sample stream")
     fixture: Fixture | None = Field(None, description="real: remounting")
     hil: Hil | None = Field(None, description="loopback simulator settings")
+    reference_equipment: list[ReferenceInstrument] = Field(
+        default_factory=list, description="reference instruments and their traceability (shown on certificates)")
 
     @model_validator(mode="after")
     def _real_limits(self) -> RigFile:

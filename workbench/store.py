@@ -270,6 +270,13 @@ class Store:
                 raise StoreError(f"store {self.url}: set {full_id} is already approved")
             db.add(ApprovalRow(set_id=full_id, approved_by=by, approved_at=_now(), comment=comment))
 
+    def approval(self, set_id: str) -> dict | None:
+        """The approval of a stored set (``approved_by``, ``approved_at`` UTC, ``comment``), None if not approved."""
+        with self.transaction() as db:
+            row = db.get(ApprovalRow, set_id)
+            return None if row is None else {"approved_by": row.approved_by, "approved_at": row.approved_at,
+                                             "comment": row.comment}
+
     def units(self) -> list[tuple[str, str]]:
         """(serial, model) of every unit in the store."""
         with self.transaction() as db:

@@ -72,11 +72,19 @@ def certificate(set_id: str = typer.Argument(..., metavar="SET_ID"),
                 pdf: bool = typer.Option(True, "--pdf/--no-pdf", help="Also print a PDF with Chromium if present.")
                 ) -> None:
     """Render the calibration certificate of a stored set (HTML, and PDF where Chromium exists)."""
+    import time
+
     from workbench.fleet.certificate import write_certificate
 
     store = Store()
-    for path in write_certificate(store.get_set(set_id), store, out_file, pdf):
-        out.print(f"wrote {path}")
+    cal = store.get_set(set_id)
+    t0 = time.monotonic()
+    with err.status(f"certificate of {cal.unit.serial}: reading the store") as status:
+        paths = write_certificate(cal, store, out_file, pdf, progress=lambda msg: status.update(
+            f"certificate of {cal.unit.serial}: {msg} ({time.monotonic() - t0:.1f} s)"))
+    for path in paths:
+        out.print(f"wrote {path}", soft_wrap=True)
+    out.print(f"certificate rendered in {time.monotonic() - t0:.1f} s")
 
 
 def register(app: typer.Typer) -> None:

@@ -1,127 +1,221 @@
-"""Calibration certificates: one HTML page (and PDF where Chromium is available) per calibrated unit.
+"""Calibration certificates: one HTML page (and PDF where Chromium is available) per stored set.
 
-Everything on the page comes from the store: the set (coefficients, uncertainties,
-provenance), the stored results of its sessions, and the figures, re-drawn by the procedures
-from the recorded sessions (whose SHA-256 must match the provenance). Nothing is typed in.
+Everything on the certificate comes from the store and what was stored with the sessions,
+nothing is re-analysed or typed in:
+
+- coefficients and noise terms of the set (``workbench.coefficients``, lab units of
+  ``workbench.units``) with expanded uncertainties U = k·u, k = 2;
+- the summary and options of each procedure's stored result, and the figures drawn when
+  that result was computed (``figures/*.png`` beside the session's folder);
+- reference equipment and its traceability from the rig configuration recorded with each
+  session (``rig_config`` of ``session.json``), ambient conditions from the session manifests;
+- the approval recorded in the store; a certificate number derived from the set.
+
+User text (serials, names, comments) is escaped (Jinja autoescape on). The PDF is printed by
+headless Chromium (through Playwright) with JavaScript disabled and every network request refused; the page also
+carries a Content-Security-Policy that allows no script and no remote resource.
 """
 
 from __future__ import annotations
 
 import base64
-import io
+import json
 import shutil
-import subprocess
+import time
+from collections.abc import Callable
 from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
-from jinja2 import Environment, FileSystemLoader, select_autoescape
+from jinja2 import Environment, FileSystemLoader
 
 from workbench import __version__
 from workbench.calset import TRIADS, CalibrationSet, atomic_write_text
+from workbench.coefficients import TRIAD_TITLES, ci_text, noise_rows, sigma_text, thermal_reference, triad_rows
+from workbench.coefficients import value_text
 from workbench.errors import WorkbenchError
-from workbench.units import DISPLAY, fmt, to_unit
 
 TEMPLATES = Path(__file__).resolve().parents[1] / "templates"
+COVERAGE_K = 2.0  # expanded uncertainty U = k u (about 95 % coverage for a normal distribution)
+CHROMIUM_ARGS = ("--headless", "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-extensions",
+                 "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                 "--disable-default-apps",
+                 # belt and braces beside the request filter: any request would go to a proxy that does not exist
+                 "--proxy-server=http://127.0.0.1:9", "--proxy-bypass-list=<-loopback>")
+
+Progress = Callable[[str], None]
 
 
-def _png(fig) -> str:
-    import matplotlib.pyplot as plt
-
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
-    plt.close(fig)
-    return base64.b64encode(buf.getvalue()).decode()
+def certificate_number(cal: CalibrationSet, version: int | None) -> str:
+    """A stable certificate number: ``WB-<serial>-v<version>-<first 8 hex of the set id>``."""
+    return f"WB-{cal.unit.serial}-v{version if version is not None else 0}-{cal.id[:8]}"
 
 
 def _triad_rows(cal: CalibrationSet, triad: str) -> list[dict]:
-    tc = cal.triads[triad]
-    unit = DISPLAY[triad]["bias"]
-    rows = []
-    b, bs = tc.model.bias, tc.sigma_of("bias")
-    for i in range(3):
-        rows.append({"name": f"bias {'xyz'[i]}", "value": f"{to_unit(b[i], unit):.5g}", "unit": unit,
-                     "sigma": "not observed" if not np.isfinite(bs[i]) else f"{to_unit(bs[i], unit):.2g}"})
-    m, ms = tc.model.scale_misalignment, tc.sigma_of("scale_misalignment")
-    for i in range(3):
-        for j in range(3):
-            scale, u = (1e-6, "ppm") if i == j else (1e-3, "mrad")
-            name = f"scale factor {'xyz'[i]}" if i == j else f"misalignment M[{'xyz'[i]},{'xyz'[j]}]"
-            rows.append({"name": name, "value": f"{m[i, j] / scale:.4g}", "unit": u,
-                         "sigma": "not observed" if not np.isfinite(ms[i, j]) else f"{ms[i, j] / scale:.2g}"})
-    if triad == "mag" and tc.field_norm_ut is not None:
-        rows.append({"name": "field norm", "value": f"{tc.field_norm_ut:.4g}", "unit": "µT",
-                     "sigma": "not observed" if tc.field_norm_ut_sigma is None else f"{tc.field_norm_ut_sigma:.2g}"})
-    return rows
+    return [{"name": r.name, "value": value_text(r.value), "unit": r.unit,
+             "u": sigma_text(r.sigma), "U": sigma_text(r.sigma, COVERAGE_K)} for r in triad_rows(cal, triad)]
 
 
 def _noise_rows(cal: CalibrationSet) -> list[dict]:
-    rows = []
-    for triad, terms in cal.noise.items():
-        for term, values in terms.items():
-            if term.endswith("_ci95"):
-                continue
-            unit = DISPLAY[triad].get("noise_white" if term in ("arw", "vrw") else term)
-            ci = terms.get(term + "_ci95") or [None] * 3
-            for i, v in enumerate(values):
-                interval = ci[i]
-                rows.append({"name": f"{triad} {term} {'xyz'[i]}",
-                             "value": fmt(v, unit) if unit else ("not observed" if v is None else f"{v:.3g}"),
-                             "ci95": "" if interval is None or unit is None else
-                             f"{to_unit(interval[0], unit):.3g} .. {to_unit(interval[1], unit):.3g}"})
-    return rows
+    return [{"name": f"{r.triad} {r.term.replace('_', ' ')} {r.axis}",
+             "value": "not observed" if not np.isfinite(r.value) else f"{r.value:.4g}",
+             "ci95": ci_text(r.ci95), "unit": r.unit} for r in noise_rows(cal)]
 
 
-def _figures(cal: CalibrationSet, store) -> tuple[list[dict], list[str]]:
-    """Figures re-drawn from the set's sessions; notes for sessions that cannot be found or changed."""
-    from workbench.calset import file_sha256
-    from workbench.registry import procedure
-    from workbench.session import load_session, samples_file
+def _manifest(path: str | None) -> dict | None:
+    if not path:
+        return None
+    try:
+        return json.loads((Path(path) / "session.json").read_text())
+    except (OSError, json.JSONDecodeError):
+        return None
 
+
+def _ambient(manifest: dict) -> str:
+    """Temperatures a session was recorded at, from its manifest (setpoints and the chamber at the end)."""
+    temps = [s["temperature_c"] for s in manifest.get("steps", []) if s.get("temperature_c") is not None]
+    state = manifest.get("rig_state") or {}
+    parts = []
+    if temps:
+        lo, hi = min(temps), max(temps)
+        parts.append(f"setpoints {lo:.1f} °C" if lo == hi else f"setpoints {lo:.1f} .. {hi:.1f} °C")
+    if state.get("air_c") is not None:
+        parts.append(f"chamber air {float(state['air_c']):.1f} °C at the end")
+    if state.get("unit_c") is not None:
+        parts.append(f"unit {float(state['unit_c']):.1f} °C at the end")
+    return "; ".join(parts) or "not recorded"
+
+
+def _reference_equipment(manifests: list[dict]) -> tuple[list[dict], list[str]]:
+    """Reference instruments of the rig configurations the sessions were recorded with (deduplicated)."""
+    from workbench.rigconfig import load_rig_config
+
+    seen, equipment, notes = set(), [], []
+    for m in manifests:
+        ref = m.get("rig_config")
+        if not ref or ref in seen:
+            continue
+        seen.add(ref)
+        try:
+            cfg = load_rig_config(ref)
+        except WorkbenchError as exc:
+            notes.append(f"rig configuration of session {m.get('id', '?')[:8]} not readable ({exc}): "
+                         "its reference equipment is not stated")
+            continue
+        for item in cfg.reference_equipment:
+            equipment.append({"rig": cfg.name, **item})
+        if not cfg.reference_equipment:
+            notes.append(f"rig {cfg.name} ({ref}) lists no reference equipment")
+    return equipment, notes
+
+
+def _figures(folder: Path | None) -> list[tuple[str, str]]:
+    """(title, base64 PNG) of the figures stored beside a session when its result was computed."""
+    if folder is None:
+        return []
+    return [(p.stem.replace("_", " "), base64.b64encode(p.read_bytes()).decode())
+            for p in sorted((folder.parent / "figures").glob("*.png"))]
+
+
+def _sessions(cal: CalibrationSet, store, progress: Progress) -> tuple[list[dict], list[str]]:
+    """One entry per provenance session: procedure, stored result (summary, options), rig, ambient, figures."""
     paths = {s.id: s.path for s in store.list_sessions(cal.unit.serial)}
-    figs, notes = [], []
+    results = {}
+    for r in store.list_results(serial=cal.unit.serial):  # newest first: keep the newest per session
+        results.setdefault(r["session_id"], r["result"])
+    out, notes = [], []
     for prov in cal.provenance.sessions:
+        progress(f"session {prov['id'][:8]} ({prov['procedure']})")
         path = paths.get(prov["id"])
-        if not path or not Path(path).exists():
-            notes.append(f"session {prov['id'][:8]} ({prov['procedure']}): recording not found; figures omitted")
-            continue
-        sfile = samples_file(Path(path))
-        if sfile is None or file_sha256(sfile) != prov["sha256"]:
-            notes.append(f"session {prov['id'][:8]}: samples do not match the recorded SHA-256; figures omitted")
-            continue
-        proc = procedure(prov["procedure"])
-        result = proc.analyze(load_session(path))
-        for name, fig in proc.figures(result).items():
-            figs.append({"title": f"{prov['procedure']}: {name.replace('_', ' ')}", "png": _png(fig)})
-    return figs, notes
+        manifest = _manifest(path)
+        if manifest is not None and manifest.get("id") != prov["id"]:
+            manifest = None  # the folder now holds another recording
+        result = results.get(prov["id"], {})
+        figures = _figures(Path(path)) if manifest is not None else []
+        if manifest is None:
+            notes.append(f"session {prov['id'][:8]} ({prov['procedure']}): recording not found; its rig, ambient "
+                         "conditions and figures cannot be stated")
+        elif not figures:
+            notes.append(f"session {prov['id'][:8]} ({prov['procedure']}): no figures were stored with its result")
+        options = result.get("options") or (manifest or {}).get("options") or {}
+        out.append({"id": prov["id"], "procedure": prov["procedure"], "sha256": prov.get("sha256", ""),
+                    "rig": prov.get("rig") or (manifest or {}).get("rig") or "",
+                    "recorded": (manifest or {}).get("created", ""),
+                    "ambient": _ambient(manifest) if manifest is not None else "not recorded",
+                    "summary": [str(s) for s in result.get("summary", [])],
+                    "warnings": [str(w) for w in result.get("warnings", [])],
+                    "options": {k: json.dumps(v) if not isinstance(v, str) else v for k, v in options.items()},
+                    "software": result.get("software_version", ""),
+                    "figures": figures, "manifest": manifest})
+    return out, notes
 
 
-def render_certificate(cal: CalibrationSet, store, with_figures: bool = True) -> str:
+def render_certificate(cal: CalibrationSet, store, progress: Progress | None = None) -> str:
     """The certificate HTML of a stored set (absent triads are shown as absent, not omitted)."""
-    results = [r for r in store.list_results(serial=cal.unit.serial)
-               if r["session_id"] in {s["id"] for s in cal.provenance.sessions}]
-    figs, notes = _figures(cal, store) if with_figures else ([], [])
-    approvals = [i for i in store.list_sets(cal.unit.serial) if i.id == cal.id]
-    env = Environment(loader=FileSystemLoader(TEMPLATES), autoescape=select_autoescape(["html"]))
+    say = progress or (lambda _msg: None)
+    say("coefficients")
+    info = next((i for i in store.list_sets(cal.unit.serial) if i.id == cal.id), None)
+    version = info.version if info else None
+    sessions, notes = _sessions(cal, store, say)
+    say("reference equipment")
+    equipment, eq_notes = _reference_equipment([s["manifest"] for s in sessions if s["manifest"] is not None])
+    say("template")
+    env = Environment(loader=FileSystemLoader(TEMPLATES), autoescape=True)  # every value escaped
     return env.get_template("certificate.html.j2").render(
-        cal=cal, triads=[(t, _triad_rows(cal, t) if t in cal.triads else None) for t in TRIADS],
-        noise=_noise_rows(cal), results=results, figures=figs, notes=notes,
-        approved_by=approvals[0].approved_by if approvals else None,
-        version=approvals[0].version if approvals else None,
-        issued=datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC"), software=__version__)
+        cal=cal, number=certificate_number(cal, version), version=version, k=f"{COVERAGE_K:g}",
+        triads=[(TRIAD_TITLES[t], t, _triad_rows(cal, t) if t in cal.triads else None,
+                 thermal_reference(cal, t) if t in cal.triads else None) for t in TRIADS],
+        noise=_noise_rows(cal), sessions=sessions, notes=notes + eq_notes, equipment=equipment,
+        approval=store.approval(cal.id), issued=datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC"),
+        software=__version__)
 
 
-def write_certificate(cal: CalibrationSet, store, out: Path, pdf: bool = True) -> list[Path]:
-    """Write ``out`` (HTML) and, where Chromium is installed, the PDF beside it."""
-    written = [atomic_write_text(out, render_certificate(cal, store))]
+def print_pdf(html_path: Path, pdf_path: Path, chromium: str, timeout_s: float = 120.0) -> Path:
+    """Print ``html_path`` to ``pdf_path`` (A4, the page's own margins and page numbers) with headless Chromium.
+
+    Driven through Playwright with JavaScript disabled in the page's context and every request
+    that is not the file itself or an inline ``data:`` image aborted: nothing is fetched from a
+    network and no script runs, whatever the page holds.
+    """
+    from playwright.sync_api import Error as PlaywrightError
+    from playwright.sync_api import sync_playwright
+
+    target = html_path.resolve().as_uri()
+
+    def only_local(route) -> None:
+        url = route.request.url
+        if url == target or url.startswith("data:"):
+            route.continue_()
+        else:
+            route.abort()
+
+    try:
+        with sync_playwright() as pw:
+            browser = pw.chromium.launch(executable_path=chromium, args=["--no-sandbox", *CHROMIUM_ARGS[2:]])
+            try:
+                context = browser.new_context(java_script_enabled=False, offline=True)
+                context.route("**/*", only_local)
+                page = context.new_page()
+                page.goto(target, wait_until="load", timeout=timeout_s * 1000)
+                page.pdf(path=str(pdf_path), prefer_css_page_size=True, print_background=True)
+            finally:
+                browser.close()
+    except PlaywrightError as exc:
+        raise WorkbenchError(f"{pdf_path}: Chromium could not print the certificate "
+                             f"({str(exc).splitlines()[0]})") from None
+    if not pdf_path.exists():
+        raise WorkbenchError(f"{pdf_path}: Chromium could not print the certificate")
+    return pdf_path
+
+
+def write_certificate(cal: CalibrationSet, store, out: Path, pdf: bool = True,
+                      progress: Progress | None = None) -> list[Path]:
+    """Write ``out`` (HTML) and, where Chromium is installed, the PDF beside it; ``progress(msg)`` per stage."""
+    say = progress or (lambda _msg: None)
+    t0 = time.monotonic()
+    written = [atomic_write_text(out, render_certificate(cal, store, say))]
     chromium = shutil.which("chromium") or shutil.which("chromium-browser")
     if pdf and chromium:
-        pdf_path = out.with_suffix(".pdf")
-        proc = subprocess.run([chromium, "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
-                               "--disable-background-networking", "--disable-component-update", "--disable-sync",
-                               f"--print-to-pdf={pdf_path}", "--no-pdf-header-footer", out.resolve().as_uri()],
-                              capture_output=True, timeout=120)
-        if proc.returncode != 0 or not pdf_path.exists():
-            raise WorkbenchError(f"{pdf_path}: Chromium could not print the certificate")
-        written.append(pdf_path)
+        say(f"PDF (HTML in {time.monotonic() - t0:.1f} s)")
+        written.append(print_pdf(out, out.with_suffix(".pdf"), chromium))
     return written
