@@ -13,7 +13,8 @@ heading error against the table azimuth (:mod:`workbench.analysis.magnetometer`)
 ``field_norm_ut`` (the site's field, fixes the scale of I+M), ``declination_deg``,
 ``accel_calibration`` (a calibration JSON whose ``accel`` block compensates the accelerometer
 used for the gravity direction), ``igrf`` (check the fitted norm and dip against the IGRF field
-at the site and date), ``method``, ``robust``.
+at the site and date), ``method``, ``robust`` (``auto``: raw-sample spikes are left out of the point means
+and the fit turns robust when its residuals are heavy-tailed; ``true`` always, ``false`` never).
 """
 
 from __future__ import annotations
@@ -43,7 +44,8 @@ OPTIONS = (
     Option("dwell_s", "sequence", "float", 5.0, "hold per yaw step", unit="s", gt=0),
     Option("rate_dps", "sequence", "float", 10.0, "rate of the revolution (mode continuous)", unit="deg/s"),
     Option("method", "analysis", "str", "auto", "estimator ('auto' chooses and says why)", choices=METHODS),
-    Option("robust", "analysis", "bool", False, "down-weight outlying points"),
+    Option("robust", "analysis", "bool", "auto", "leave out spikes and outlying points ('auto': when the "
+           "residuals are heavy-tailed)", words=("auto",)),
     Option("field_norm_ut", "analysis", "float", None, "the site's field magnitude (fixes the scale of I+M; "
            "default: the rig site's)", unit="uT", gt=0),
     Option("declination_deg", "analysis", "float", None, "magnetic declination", unit="deg"),
@@ -76,12 +78,12 @@ def sequence(spec, **options) -> Sequence:
 def analyze(session: Session, **options) -> ProcedureResult:
     """Calibrate the magnetometer from a session of yaw sweeps (see the module docstring)."""
     o = check_options(NAME, OPTIONS, options, "analysis")
-    points = points_from_session(session)
+    points = points_from_session(session, reject_spikes=o["robust"] is not False)
     decl = o.si("declination_deg")
     accel = None if o["accel_calibration"] is None else CalibrationSet.load(o["accel_calibration"]).model("accel")
     # the field magnitude: the option, else the reference the rig's site records, else unknown
     norm = o["field_norm_ut"] if o["field_norm_ut"] is not None else session.site.field_norm_ut
-    cal = calibrate(points, method=str(o["method"]), robust=bool(o["robust"]),
+    cal = calibrate(points, method=str(o["method"]), robust=o["robust"],
                     field_norm_ut=None if norm is None else float(norm),
                     declination=decl, accel_model=accel, reference=_igrf(session) if o["igrf"] else None,
                     source=session.name)

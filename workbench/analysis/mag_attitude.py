@@ -36,7 +36,7 @@ def _wrap(a):
     return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
 
 
-def fit_dip(mag: np.ndarray, accel: np.ndarray, field_norm_ut: float | None = None, robust: bool = False,
+def fit_dip(mag: np.ndarray, accel: np.ndarray, field_norm_ut: float | None = None, robust: bool | str = False,
             warnings: tuple[str, ...] = ()) -> MagFit:
     """Hard iron, full soft iron (incl. rotation to the accelerometer axes), field norm and dip.
 
@@ -102,7 +102,7 @@ def _linear_start(mag: np.ndarray, ct: np.ndarray) -> np.ndarray:
     return np.concatenate([g.ravel(), coef[9], [np.arcsin(np.clip(h[2], -1, 1)), np.arctan2(h[1], h[0])]])
 
 
-def fit_attitude(mag: np.ndarray, attitude: Rotation, field_norm_ut: float | None = None, robust: bool = False,
+def fit_attitude(mag: np.ndarray, attitude: Rotation, field_norm_ut: float | None = None, robust: bool | str = False,
                  warnings: tuple[str, ...] = ()) -> MagFit:
     """Vector least squares with known attitude: full ``I + M``, hard iron, field norm, dip, declination.
 

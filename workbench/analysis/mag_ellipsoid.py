@@ -76,7 +76,7 @@ def _sym(p6: np.ndarray) -> np.ndarray:
     return s + np.triu(s, 1).T
 
 
-def algebraic_pd(mag: np.ndarray, robust: bool = False) -> tuple[np.ndarray, np.ndarray]:
+def algebraic_pd(mag: np.ndarray, robust: bool | str = False) -> tuple[np.ndarray, np.ndarray]:
     """Convex algebraic ellipsoid fit: (centre µT (3,), symmetric gain ``G`` µT (3, 3)).
 
     Minimises the algebraic residual ``x^T Q x + v^T x + d`` on centred and scaled data
@@ -102,7 +102,7 @@ def algebraic_pd(mag: np.ndarray, robust: bool = False) -> tuple[np.ndarray, np.
     return c0 + s0 * c, s0 * _ellipsoid_to_gain(e)
 
 
-def fit_ellipsoid(mag: np.ndarray, field_norm_ut: float | None = None, robust: bool = False,
+def fit_ellipsoid(mag: np.ndarray, field_norm_ut: float | None = None, robust: bool | str = False,
                   warnings: tuple[str, ...] = ()) -> MagFit:
     """Hard iron, symmetric soft iron and field norm from samples on a (part of an) ellipsoid.
 
@@ -145,7 +145,7 @@ def fit_ellipsoid(mag: np.ndarray, field_norm_ut: float | None = None, robust: b
     return fit
 
 
-def fit_sphere(mag: np.ndarray, field_norm_ut: float | None = None, robust: bool = False,
+def fit_sphere(mag: np.ndarray, field_norm_ut: float | None = None, robust: bool | str = False,
                warnings: tuple[str, ...] = ()) -> MagFit:
     """Hard iron and field norm only (``|m - b| = F``); soft iron is not observed (NaN sigma).
 

@@ -10,8 +10,14 @@ fixed either by a reference field norm (the site's field, when the caller gives 
 convention, by ``det(I + M) = 1`` (volume-preserving soft iron, ``F`` the geometric-mean
 radius of the ellipsoid); :attr:`MagFit.scale_fixed_by` says which.
 
+Robustness (every estimator goes through :func:`solve`): ``robust=True`` fits with a Cauchy
+loss whose scale is the residuals' noise (MAD), rejects points beyond 5 robust sigma and refits
+by least squares on the rest; ``robust="auto"`` (the procedure's default) fits by least squares
+and switches to the robust fit only when the residuals are heavy-tailed (:func:`heavy_tails`).
+The rejected points are in :attr:`MagFit.rejected`.
+
 Public: :class:`MagFit`, :func:`gain_to_model`, :func:`lsq_covariance`, :func:`propagate`,
-:func:`polar_rotation`, :data:`FIELD_RANGE_UT`.
+:func:`polar_rotation`, :func:`heavy_tails`, :func:`solve`, :data:`FIELD_RANGE_UT`.
 """
 
 from __future__ import annotations
@@ -50,6 +56,7 @@ class MagFit:
     n_points : number of points fitted
     scale_fixed_by : ``"reference"`` (given field norm) or ``"det"`` (``det(I + M) = 1``)
     warnings : what the data could not support
+    rejected : indices of the points the robust fit left out as outliers
     """
 
     method: str
@@ -69,6 +76,7 @@ class MagFit:
     alignment: np.ndarray | None = None
     alignment_sigma: np.ndarray | None = None
     warnings: tuple[str, ...] = field(default_factory=tuple)
+    rejected: tuple[int, ...] = ()
 
     @property
     def scale_misalignment(self) -> np.ndarray:
@@ -102,7 +110,8 @@ class MagFit:
                 "declination_rad": num(self.declination), "declination_sigma_rad": num(self.declination_sigma),
                 "alignment_rotvec_rad": arr(self.alignment), "alignment_sigma_rad": arr(self.alignment_sigma),
                 "residual_rms_ut": num(self.residual_rms_ut), "n_points": self.n_points,
-                "scale_fixed_by": self.scale_fixed_by, "warnings": list(self.warnings)}
+                "scale_fixed_by": self.scale_fixed_by, "warnings": list(self.warnings),
+                "rejected_points": list(self.rejected)}
 
 
 def gain_to_model(gain: np.ndarray, field_norm_ut: float | None) -> tuple[np.ndarray, float, str]:
@@ -180,20 +189,40 @@ class Solution:
     inliers: np.ndarray
 
 
+REJECT_SIGMA = 5.0  # robust standard deviations beyond which a point is an outlier
+
+
+def _outliers(r: np.ndarray, reject_sigma: float) -> np.ndarray:
+    """Mask (N,) of the points whose residual norm exceeds ``reject_sigma`` robust sigma (MAD) times sqrt(k)."""
+    k = r.shape[1]
+    sig = 1.4826 * float(np.median(np.abs(r))) if k > 1 else 1.4826 * float(np.median(np.abs(r - np.median(r))))
+    return np.linalg.norm(r, axis=1) > reject_sigma * max(sig, 1e-6) * np.sqrt(k)
+
+
+def heavy_tails(r: np.ndarray, reject_sigma: float = REJECT_SIGMA) -> bool:
+    """Whether residuals (N, k) µT have more points beyond ``reject_sigma`` robust sigma than Gaussian
+    noise would give: at least 2 points and 0.1 % of them (Gaussian: ~6e-7 of the points at 5 sigma)."""
+    n_out = int(_outliers(r, reject_sigma).sum())
+    return n_out >= max(2, int(np.ceil(1e-3 * len(r))))
+
+
 def solve(resid: Callable[[np.ndarray, np.ndarray], np.ndarray], p0: np.ndarray, n_points: int,
-          robust: bool = False, reject_sigma: float = 5.0,
+          robust: bool | str = False, reject_sigma: float = REJECT_SIGMA,
           prior: Callable[[np.ndarray], np.ndarray] | None = None) -> Solution:
     """Least squares over points: ``resid(p, idx)`` returns the (len(idx), k) residuals (µT) of points ``idx``.
 
-    With ``robust``, a Cauchy-loss fit first finds the outliers (per-point residual norm above
-    ``reject_sigma`` robust standard deviations, from the median absolute deviation); the
-    final fit is plain least squares on the inliers, so its covariance is the usual
-    ``s^2 inv(J^T J)``. ``prior(p)`` returns residuals in units of their prior 1-sigma
-    (a Gaussian prior); they are weighted against the points by the noise level of the
-    residuals at ``p0``.
+    With ``robust=True``, a Cauchy-loss fit (scale: the residuals' noise) first finds the
+    outliers (per-point residual norm above ``reject_sigma`` robust standard deviations, from
+    the median absolute deviation); the final fit is plain least squares on the inliers, so its
+    covariance is the usual ``s^2 inv(J^T J)``. ``robust="auto"``: least squares, then the
+    robust fit if the residuals are heavy-tailed (:func:`heavy_tails`). ``prior(p)`` returns
+    residuals in units of their prior 1-sigma (a Gaussian prior); they are weighted against the
+    points by the noise level of the residuals at ``p0``.
     """
     from scipy.optimize import least_squares
 
+    if robust not in (True, False, "auto"):
+        raise AnalysisError(f"robust={robust!r}: expected true, false or 'auto'")
     idx = np.arange(n_points)
     inliers = np.ones(n_points, bool)
     p = np.asarray(p0, float)
@@ -204,14 +233,15 @@ def solve(resid: Callable[[np.ndarray, np.ndarray], np.ndarray], p0: np.ndarray,
         r = resid(q, keep).ravel()
         return r if prior is None else np.concatenate([r, noise * prior(q)])
 
+    if robust == "auto":
+        sol = least_squares(lambda q: full(q, idx), p, method="lm", x_scale="jac")
+        r = resid(sol.x, idx)
+        if not heavy_tails(r, reject_sigma):
+            return Solution(sol.x, lsq_covariance(sol.jac, r.ravel()), r, inliers)
     if robust:
         sol = least_squares(lambda q: full(q, idx), p, loss="cauchy", f_scale=noise, x_scale="jac")
         p = sol.x
-        r = resid(p, idx)
-        rn = np.linalg.norm(r, axis=1)
-        k = r.shape[1]
-        sig = 1.4826 * float(np.median(np.abs(r))) if k > 1 else 1.4826 * float(np.median(np.abs(r - np.median(r))))
-        inliers = rn <= reject_sigma * max(sig, 1e-6) * np.sqrt(k)
+        inliers = ~_outliers(resid(p, idx), reject_sigma)
     keep = idx[inliers]
     sol = least_squares(lambda q: full(q, keep), p, method="lm", x_scale="jac")
     r = resid(sol.x, keep)
@@ -264,4 +294,5 @@ def build_fit(method: str, sol: Solution, unpack: Callable[[np.ndarray], tuple[n
     return MagFit(method=method, bias=b, bias_sigma=sb, soft_iron=a, soft_iron_sigma=sa, field_norm_ut=f,
                   field_norm_sigma=sf, residual_rms_ut=rms, n_points=int(sol.inliers.sum()), scale_fixed_by=how,
                   dip=opt(0), dip_sigma=opt_s(0), declination=opt(1), declination_sigma=opt_s(1),
-                  alignment=rot, alignment_sigma=srot, warnings=tuple(warnings))
+                  alignment=rot, alignment_sigma=srot, warnings=tuple(warnings),
+                  rejected=tuple(int(i) for i in np.flatnonzero(~sol.inliers)))

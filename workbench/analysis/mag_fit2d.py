@@ -48,7 +48,7 @@ def _plane_axes(down_mean: np.ndarray) -> tuple[int, int, int]:
 
 
 def _embed(method: str, xy_axes: tuple[int, int, int], offset, offset_sig, a2, a2_sig, h_norm, mag, rms, n,
-           warnings) -> MagFit:
+           warnings, rejected: np.ndarray | None = None) -> MagFit:
     i, j, v = xy_axes
     b, sb = np.zeros(3), np.full(3, np.nan)
     b[[i, j]], sb[[i, j]] = offset, offset_sig
@@ -58,16 +58,26 @@ def _embed(method: str, xy_axes: tuple[int, int, int], offset, offset_sig, a2, a
     vert = float(np.mean(mag[:, v]))
     norm = float(np.hypot(h_norm, vert))  # assumes the unobserved vertical hard iron is zero (prior)
     return MagFit(method, b, sb, a, sa, norm, float("nan"), rms, n, "2d: minor axis = horizontal field",
-                  warnings=(*warnings, NOT_OBSERVABLE))
+                  warnings=(*warnings, NOT_OBSERVABLE),
+                  rejected=() if rejected is None else tuple(int(i) for i in np.flatnonzero(rejected)))
 
 
-def fit_2d_minmax(mag: np.ndarray, down_mean: np.ndarray = np.array([0.0, 0.0, 1.0])) -> MagFit:
+def fit_2d_minmax(mag: np.ndarray, down_mean: np.ndarray = np.array([0.0, 0.0, 1.0]),
+                  robust: bool | str = False) -> MagFit:
     """Paper 004 eq. 10-18 verbatim on level data (N, 3) µT; no uncertainty (NaN sigma).
 
     ``down_mean`` (3,) body-frame down direction, picks the vertical axis (z for a level unit).
+    ``robust`` (True or ``"auto"``): the extremes are taken over the points a robust least-squares
+    2D fit (:func:`fit_2d`) keeps, since one spike sets a minimum or maximum on its own.
     """
     axes = _plane_axes(down_mean)
-    xy = mag[:, axes[:2]]
+    rejected = np.zeros(len(mag), bool)
+    if robust:
+        rejected[list(fit_2d(mag, down_mean, robust).rejected)] = True
+    notes = ("paper 004 min/max recipe: no uncertainty estimated",)
+    if rejected.any():
+        notes += (f"robust: {int(rejected.sum())} of {len(mag)} points rejected as outliers before the min/max",)
+    xy = mag[~rejected][:, axes[:2]]
     off = 0.5 * (xy.max(axis=0) + xy.min(axis=0))  # eq. 10-11
     p = xy - off
     k = int(np.argmax(np.sum(p**2, axis=1)))
@@ -81,11 +91,12 @@ def fit_2d_minmax(mag: np.ndarray, down_mean: np.ndarray = np.array([0.0, 0.0, 1
     h = p @ np.linalg.inv(a2).T
     hn = float(np.abs(q[:, 1]).max())
     rms = float(np.sqrt(np.mean((np.linalg.norm(h, axis=1) - hn) ** 2)))
-    return _embed("2d-minmax", axes, off, np.full(2, np.nan), a2, np.full((2, 2), np.nan), hn, mag, rms, len(mag),
-                  ("paper 004 min/max recipe: no uncertainty estimated",))
+    return _embed("2d-minmax", axes, off, np.full(2, np.nan), a2, np.full((2, 2), np.nan), hn, mag, rms, len(xy),
+                  notes, rejected)
 
 
-def fit_2d(mag: np.ndarray, down_mean: np.ndarray = np.array([0.0, 0.0, 1.0]), robust: bool = False) -> MagFit:
+def fit_2d(mag: np.ndarray, down_mean: np.ndarray = np.array([0.0, 0.0, 1.0]),
+           robust: bool | str = False) -> MagFit:
     """Least-squares 2D calibration of level data (N, 3) µT: offsets, ``theta``, ``sigma`` of paper 004 with sigmas.
 
     Fits ``|diag(1/sigma, 1) R(theta) (m_xy - offset)| = H`` (``H`` the horizontal field, µT,
@@ -124,4 +135,4 @@ def fit_2d(mag: np.ndarray, down_mean: np.ndarray = np.array([0.0, 0.0, 1.0]), r
         notes.append(f"robust fit: {int((~sol.inliers).sum())} of {len(xy)} points rejected as outliers")
     rms = float(np.sqrt(np.mean(sol.residuals**2)))
     return _embed("2d", axes, p[:2], sig[:2], a2_of(p).reshape(2, 2), np.sqrt(np.abs(np.diag(cov_a2))).reshape(2, 2),
-                  float(p[4]), mag, rms, int(sol.inliers.sum()), tuple(notes))
+                  float(p[4]), mag, rms, int(sol.inliers.sum()), tuple(notes), ~sol.inliers)

@@ -24,7 +24,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from workbench.analysis import mag_attitude, mag_ellipsoid, mag_fit2d, mag_quality, mag_reference, mag_select
+from workbench.analysis import mag_attitude, mag_ellipsoid, mag_fit2d, mag_quality, mag_reference, mag_select, mag_spikes
 from workbench.analysis.mag_fit import FIELD_RANGE_UT, MagFit
 from workbench.analysis.mag_heading import HeadingEvaluation, evaluate_heading
 from workbench.analysis.mag_reference import ReferenceField
@@ -46,7 +46,9 @@ class MagPoints:
     ``mag`` (N, 3) µT and ``accel`` (N, 3) m/s^2 (or None) in the body frame; ``attitude`` N
     body-to-reference rotations or None; ``frame`` names the reference (``"NED"`` when the
     table zero azimuth is known, else ``"table"``: level frame with x along the table zero);
-    ``step`` (N,) the step index of each point; ``samples_per_point`` (N,).
+    ``step`` (N,) the step index of each point; ``samples_per_point`` (N,); ``t`` (N,) s the mean
+    sample time of each point; ``spike_t`` s the times of the raw samples left out as spikes
+    (:mod:`mag_spikes`).
     """
 
     mag: np.ndarray
@@ -55,6 +57,8 @@ class MagPoints:
     frame: str | None = None
     step: np.ndarray | None = None
     samples_per_point: np.ndarray | None = None
+    t: np.ndarray | None = None
+    spike_t: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.mag)
@@ -88,22 +92,30 @@ class MagCalibration:
                 "n_points": len(self.points), "warnings": list(self.warnings)}
 
 
-def points_from_session(session: Session, block_deg: float = 1.0) -> MagPoints:
+def points_from_session(session: Session, block_deg: float = 1.0, reject_spikes: bool = True) -> MagPoints:
     """Fit points from a session with magnetometer columns (see the module docstring).
 
     Static steps give one point each (their mean); rate and carousel steps are cut into
     blocks of at most ``block_deg`` degrees of table rotation (using the ``table_angle``
-    column when present, else the commanded rate). Index moves are skipped.
+    column when present, else the commanded rate). Index moves are skipped. With
+    ``reject_spikes``, raw samples that are spikes (:func:`mag_spikes.spike_mask`) are left
+    out of the means; their times are in ``spike_t``.
     """
     if not session.has_mag:
         raise AnalysisError(f"{session.name}: samples have no magnetometer columns mx, my, mz")
     frame = "NED" if session.site.table_zero_azimuth is not None else "table"
-    mags, accs, rots, steps, counts = [], [], [], [], []
-    for st in session.steps:
-        df = session.step_samples(st.index)
-        if df.empty or st.kind not in STATIC_KINDS + ROTATING_KINDS:
+    used = [(st, session.step_samples(st.index)) for st in session.steps if st.kind in STATIC_KINDS + ROTATING_KINDS]
+    used = [(st, df) for st, df in used if not df.empty]
+    raw = [df[["mx", "my", "mz"]].to_numpy(float) for _, df in used]
+    spikes = (mag_spikes.spike_mask([mag_spikes.running_median_residual(m) for m in raw]) if reject_spikes
+              else [np.zeros(len(m), bool) for m in raw])
+    mags, accs, rots, steps, counts, times, spike_t = [], [], [], [], [], [], []
+    for (st, df), m, spike in zip(used, raw, spikes):
+        spike_t.append(df["t"].to_numpy(float)[spike])
+        df, m = df[~spike], m[~spike]
+        if df.empty:
             continue
-        m, a = df[["mx", "my", "mz"]].to_numpy(float), df[["ax", "ay", "az"]].to_numpy(float)
+        a = df[["ax", "ay", "az"]].to_numpy(float)
         if st.kind in STATIC_KINDS:
             angle = (float(np.angle(np.mean(np.exp(1j * df["table_angle"].to_numpy(float)))))  # circular mean
                      if "table_angle" in df else st.table_angle)
@@ -117,6 +129,7 @@ def points_from_session(session: Session, block_deg: float = 1.0) -> MagPoints:
         for g, angle in groups:
             mags.append(m[g].mean(axis=0))
             accs.append(a[g].mean(axis=0))
+            times.append(float(df["t"].to_numpy(float)[g].mean()))
             rot = session.attitude(st, angle) if frame == "NED" else session.table_attitude(st, angle)
             rots.append(rot)
             steps.append(st.index)
@@ -124,7 +137,7 @@ def points_from_session(session: Session, block_deg: float = 1.0) -> MagPoints:
     if not mags:
         raise AnalysisError(f"{session.name}: no static or rotating step with samples for a magnetometer fit")
     return MagPoints(np.array(mags), np.array(accs), Rotation.concatenate(rots), frame, np.array(steps),
-                     np.array(counts))
+                     np.array(counts), np.array(times), np.concatenate(spike_t) if spike_t else np.zeros(0))
 
 
 def check_points(mag: np.ndarray, method: str, source: str = "magnetometer data") -> None:
@@ -162,7 +175,7 @@ def _down(points: MagPoints) -> np.ndarray | None:
     return None
 
 
-def _fit(method: str, points: MagPoints, down: np.ndarray | None, field_norm_ut, robust: bool,
+def _fit(method: str, points: MagPoints, down: np.ndarray | None, field_norm_ut, robust: bool | str,
          notes: tuple[str, ...] = ()) -> MagFit:
     mag = points.mag
     flat = mag_quality.thickness(mag)
@@ -171,7 +184,7 @@ def _fit(method: str, points: MagPoints, down: np.ndarray | None, field_norm_ut,
                             "tilted positions; use method '2d' for level data")
     if method in ("2d", "2d-minmax"):
         dmean = down.mean(axis=0) if down is not None else np.array([0.0, 0.0, 1.0])
-        return (mag_fit2d.fit_2d(mag, dmean, robust) if method == "2d" else mag_fit2d.fit_2d_minmax(mag, dmean))
+        return (mag_fit2d.fit_2d(mag, dmean, robust) if method == "2d" else mag_fit2d.fit_2d_minmax(mag, dmean, robust))
     if method == "sphere":
         return mag_ellipsoid.fit_sphere(mag, field_norm_ut, robust, notes)
     if method == "ellipsoid":
@@ -187,7 +200,7 @@ def _fit(method: str, points: MagPoints, down: np.ndarray | None, field_norm_ut,
     return mag_attitude.fit_attitude(mag, points.attitude, field_norm_ut, robust, notes)
 
 
-def calibrate(points: MagPoints, method: str = "auto", robust: bool = False, field_norm_ut: float | None = None,
+def calibrate(points: MagPoints, method: str = "auto", robust: bool | str = False, field_norm_ut: float | None = None,
               declination: float | None = None, baseline: bool = True, accel_model: TriadModel | None = None,
               reference: ReferenceField | None = None, source: str = "magnetometer data") -> MagCalibration:
     """Calibrate a magnetometer from ``points``.
@@ -195,7 +208,8 @@ def calibrate(points: MagPoints, method: str = "auto", robust: bool = False, fie
     Parameters
     ----------
     method : one of :data:`mag_select.METHODS`; ``auto`` chooses (reason reported)
-    robust : reject outliers (spikes) before the final least-squares fit
+    robust : reject outliers before the final least-squares fit (True), never (False), or when
+        the residuals are heavy-tailed (``"auto"``, :func:`mag_fit.heavy_tails`)
     field_norm_ut : reference field magnitude µT (the site's field), fixes the scale of ``I + M``;
         None uses ``det(I + M) = 1`` and reports the fitted norm
     declination : rad, field azimuth from the reference x axis for the heading error; None uses
@@ -248,8 +262,25 @@ def calibrate(points: MagPoints, method: str = "auto", robust: bool = False, fie
         if base is not None and head is not None:
             base_head = evaluate_heading(base.compensate(points.mag), hdown, points.attitude, known, tilt)
     ref_notes = mag_reference.compare(fit, reference) if reference is not None else []
-    warnings = tuple(dict.fromkeys((*fit.warnings, *quality.warnings, *ref_notes)))
+    warnings = tuple(dict.fromkeys((*fit.warnings, *quality.warnings, *ref_notes, *outlier_notes(points, fit))))
     return MagCalibration(fit, choice, quality, head, raw_head, base, base_head, points, warnings, reference)
+
+
+def _times(t: np.ndarray) -> str:
+    shown = ", ".join(f"{v:.2f}" for v in t[:8])
+    return f"t = {shown}{f' ... (+{len(t) - 8} more)' if len(t) > 8 else ''} s"
+
+
+def outlier_notes(points: MagPoints, fit: MagFit) -> list[str]:
+    """Lines saying how many raw samples were spikes and how many fit points outliers, and when."""
+    out = []
+    if points.spike_t is not None and len(points.spike_t):
+        out.append(f"{len(points.spike_t)} magnetometer samples left out as spikes (> {mag_spikes.REJECT_SIGMA:g} "
+                   f"noise sigma from the running median): {_times(np.sort(points.spike_t))}")
+    if fit.rejected and points.t is not None:
+        out.append(f"{len(fit.rejected)} of {len(points)} fit points rejected as outliers: "
+                   f"{_times(np.sort(points.t[list(fit.rejected)]))}")
+    return out
 
 
 def triad_calibration(fit: MagFit) -> TriadCalibration:
