@@ -21,18 +21,22 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from sqlalchemy import (Boolean, ForeignKey, Integer, String, Text, UniqueConstraint, create_engine, event,
-                        func, inspect, select)
+                        func, inspect, select, text)
 from sqlalchemy.engine import Engine
 from sqlalchemy.exc import IntegrityError, OperationalError, SQLAlchemyError
 from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column, sessionmaker
 
-from workbench.calset import CalibrationSet
 from workbench.errors import StoreError
+
+if TYPE_CHECKING:  # the calibration-set format (numpy, jsonschema) loads when a set is read
+    from workbench.calset import CalibrationSet
 
 DEFAULT_URL = "sqlite:///workbench.db"
 HEAD_REVISION = "0001"  # the Alembic revision this version of the code expects
+VERSION_TABLE = "alembic_version"  # where Alembic keeps the schema revision
 MIGRATIONS = Path(__file__).resolve().parent / "migrations"
 
 
@@ -110,6 +114,13 @@ class SetInfo:
 
 def _now() -> str:
     return datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
+
+
+def _set_from_row(row: SetRow) -> CalibrationSet:
+    """The calibration set a stored row holds."""
+    from workbench.calset import CalibrationSet
+
+    return CalibrationSet.from_json(row.body, source=f"store set {row.id}")
 
 
 def _sqlite_immediate(engine: Engine) -> None:
@@ -238,13 +249,13 @@ class Store:
                     what = "matches several sets" if rows else "is not in the store"
                     raise StoreError(f"store {self.url}: set {set_id!r} {what}")
                 row = rows[0]
-            return CalibrationSet.from_json(row.body, source=f"store set {row.id}")
+            return _set_from_row(row)
 
     def latest(self, serial: str) -> CalibrationSet | None:
         """The newest set of unit ``serial`` (None if it has none)."""
         with self.transaction() as db:
             row = db.scalars(select(SetRow).where(SetRow.serial == serial).order_by(SetRow.version.desc())).first()
-            return None if row is None else CalibrationSet.from_json(row.body, source=f"store set {row.id}")
+            return None if row is None else _set_from_row(row)
 
     def list_sets(self, serial: str | None = None) -> list[SetInfo]:
         """Stored sets (all, or one unit's history), newest first."""
@@ -353,11 +364,18 @@ def _alembic_config(connection):
 
 
 def schema_revision(engine: Engine) -> str | None:
-    """The Alembic revision of the database's schema (None for an empty database)."""
-    from alembic.runtime.migration import MigrationContext
+    """The Alembic revision of the database's schema (None for an empty database).
 
+    Read from Alembic's version table directly: opening the store does not load Alembic.
+    """
     with engine.connect() as conn:
-        return MigrationContext.configure(conn).get_current_revision()
+        if not inspect(conn).has_table(VERSION_TABLE):
+            return None
+        heads = conn.execute(text(f"SELECT version_num FROM {VERSION_TABLE}")).scalars().all()
+    if len(heads) > 1:
+        raise StoreError(f"store {engine.url}: several schema revisions ({', '.join(heads)}); "
+                         f"run `workbench db upgrade`")
+    return heads[0] if heads else None
 
 
 def upgrade(engine_or_url: Engine | str, revision: str = "head") -> str | None:

@@ -11,16 +11,16 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import numpy as np
-import pandas as pd
 import typer
 from rich.table import Table
 
 from workbench.cli import out
 from workbench.errors import AnalysisError, SessionError
-from workbench.session import ACCEL, GYRO, load_session, read_samples
 
-if TYPE_CHECKING:  # the fit (scipy.stats, cvxpy) is imported when a command runs, not with the CLI
+if TYPE_CHECKING:  # numpy, pandas, sessions and the fit (scipy.stats, cvxpy) load when the command runs
+    import numpy as np
+    import pandas as pd
+
     from workbench.analysis.allan_fit import AllanAnalysis
 
 TIME_COLUMNS = ("t", "time")
@@ -29,6 +29,8 @@ RATE_TOLERANCE = 0.01  # relative spread of sample intervals accepted as a const
 
 def quantity_of(columns: list[str]) -> str | None:
     """``"gyro"`` for gx/gy/gz, ``"accel"`` for ax/ay/az, else None (generic SI data)."""
+    from workbench.session import ACCEL, GYRO
+
     if set(columns) <= set(GYRO):
         return "gyro"
     if set(columns) <= set(ACCEL):
@@ -41,6 +43,8 @@ def rate_from_time(t: np.ndarray, source: str) -> tuple[float, np.ndarray]:
 
     Raises when the intervals (gaps aside) vary by more than :data:`RATE_TOLERANCE`.
     """
+    import numpy as np
+
     dt = np.diff(np.asarray(t, float))
     if len(dt) == 0 or np.any(~np.isfinite(dt)) or np.any(dt <= 0):
         row = int(np.argmax(~(dt > 0))) + 1 if len(dt) else 0
@@ -61,6 +65,11 @@ def load_record(path: Path, columns: list[str] | None, rate: float | None) -> tu
 
     Gaps in a time column become NaN rows, so the gap policy decides what happens to them.
     """
+    import numpy as np
+    import pandas as pd
+
+    from workbench.session import GYRO, load_session, read_samples
+
     if path.is_dir():
         session = load_session(path)
         static = session.steps_of_kind("static")
@@ -94,6 +103,8 @@ def _columns(df: pd.DataFrame, cols: list[str], path: Path) -> np.ndarray:
 
 def curves_frame(an: AllanAnalysis) -> pd.DataFrame:
     """One row per column and tau: tau_s, adev and its 95 % interval (input SI unit), edf, alpha."""
+    import pandas as pd
+
     c = an.ci.curve
     rows = [{"column": col, "tau_s": c.tau[k], "m": int(c.m[k]), "n": int(c.n[k]), "adev": c.dev[k, j],
              "adev_lo95": an.ci.lo[k, j], "adev_hi95": an.ci.hi[k, j], "edf": an.ci.edf[k, j],

@@ -6,7 +6,6 @@ import typer
 
 from workbench.cli import out
 from workbench.errors import StoreError
-from workbench.store import HEAD_REVISION, default_url, schema_revision, upgrade
 
 db_app = typer.Typer(no_args_is_help=True, help="Store schema: current revision and upgrade.")
 
@@ -14,6 +13,8 @@ db_app = typer.Typer(no_args_is_help=True, help="Store schema: current revision 
 def _engine():
     from sqlalchemy import create_engine
     from sqlalchemy.exc import SQLAlchemyError
+
+    from workbench.store import default_url
 
     url = default_url()
     try:
@@ -27,6 +28,8 @@ def _engine():
 @db_app.command("current")
 def current() -> None:
     """Print the store's schema revision and the one this version needs."""
+    from workbench.store import HEAD_REVISION, schema_revision
+
     url, engine = _engine()
     out.print(f"{url}: revision {schema_revision(engine) or 'none (empty)'}; this version needs {HEAD_REVISION}")
 
@@ -34,6 +37,8 @@ def current() -> None:
 @db_app.command("upgrade")
 def upgrade_cmd() -> None:
     """Migrate the store's schema to the revision this version needs."""
+    from workbench.store import upgrade
+
     url, engine = _engine()
     out.print(f"{url}: upgraded to revision {upgrade(engine)}")
 

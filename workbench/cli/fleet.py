@@ -9,7 +9,6 @@ from rich.progress import BarColumn, Progress, TextColumn
 
 from workbench.cli import err, out
 from workbench.cli.run import parse_options
-from workbench.store import Store
 
 
 def batch(procedure: str = typer.Argument(..., metavar="PROCEDURE"),
@@ -23,6 +22,7 @@ def batch(procedure: str = typer.Argument(..., metavar="PROCEDURE"),
     """Analyse many sessions in parallel on Dask; results stream into the store; failures are isolated."""
     from workbench.fleet.batch import cluster_client, run_batch
     from workbench.registry import procedure as get_procedure
+    from workbench.store import Store
 
     get_procedure(procedure)  # an unknown procedure fails before a cluster starts
     store = None if no_store else Store()
@@ -75,6 +75,7 @@ def certificate(set_id: str = typer.Argument(..., metavar="SET_ID"),
     import time
 
     from workbench.fleet.certificate import write_certificate
+    from workbench.store import Store
 
     store = Store()
     cal = store.get_set(set_id)

@@ -8,6 +8,7 @@ from collections.abc import Mapping
 from contextlib import contextmanager
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import typer
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
@@ -16,9 +17,10 @@ from rich.table import Table
 from workbench.cli import err, out
 from workbench.errors import ProcedureError, WorkbenchError
 from workbench.options import declarations, option_rows, split, validate
-from workbench.procedure import ProcedureResult, run_analysis
 from workbench.registry import procedure, procedures
-from workbench.store import Store
+
+if TYPE_CHECKING:  # sessions, analyses and the store load when a command runs, not with the CLI
+    from workbench.procedure import ProcedureResult
 
 
 def parse_options(items: list[str] | None, defaults: Mapping | None = None) -> dict:
@@ -128,6 +130,7 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
     from workbench.grades import draw_unit, load_spec
     from workbench.jobs import record_procedure, resume_procedure, run_campaign
     from workbench.rigconfig import check_plan, load_rig_config
+    from workbench.store import Store
 
     store = None if no_store or dry_run else Store()
     if resume is not None:
@@ -203,6 +206,8 @@ def _campaign_options(options: dict) -> dict[str, dict]:
 def _run_drive(proc, spec, truth, cfg, seed: int, out_dir: Path | None, options: dict, store, calibration,
                dry_run: bool) -> None:
     """Drive the simulated vehicle for a land-navigation validation, then analyse the drive."""
+    from workbench.procedure import run_analysis
+
     seq_options, analysis_options = split(proc, options)  # refuses a misspelt option before anything runs
     if cfg.driver != "sim":
         raise ProcedureError(f"{proc.NAME}: a drive is simulated (--rig sim) or imported (workbench analyze)")
@@ -238,6 +243,8 @@ def _calibrate_first(spec, truth, cfg, seed, out_dir: Path):
 
 
 def _analyse_and_report(proc, session, out_dir: Path, store, calibration, analysis_options=None) -> None:
+    from workbench.procedure import run_analysis
+
     options = dict(analysis_options or {})  # checked again by the procedure's analyze()
     if calibration is not None:
         options["calibration"] = _load_calibration(calibration) if isinstance(calibration, str) else calibration
@@ -257,7 +264,9 @@ def analyze(procedure_name: str = typer.Argument(..., metavar="PROCEDURE"),
             figures: Path = typer.Option(None, "--figures", help="Write result.json and figures/ into this folder.")
             ) -> None:
     """Analyse any session in the workbench format and store its calibration set (or result)."""
+    from workbench.procedure import run_analysis
     from workbench.session import load_session
+    from workbench.store import Store
 
     proc = procedure(procedure_name)
     options = parse_options(option)

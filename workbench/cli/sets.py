@@ -4,35 +4,27 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
 import typer
 from rich import box
 from rich.markup import escape
 from rich.table import Table
 
-from workbench.calset import CalibrationSet, atomic_write_text, merge
 from workbench.cli import out
-from workbench.coefficients import (
-    TRIAD_TITLES,
-    ci_text,
-    element_name,
-    element_unit,
-    noise_rows,
-    sigma_text,
-    thermal_reference,
-    triad_rows,
-    value_text,
-)
-from workbench.diff import NOT_OBSERVED, NOT_OBSERVED_A, NOT_OBSERVED_B, ONLY_A, ONLY_B, diff_sets
 from workbench.registry import exporter, exporters
-from workbench.store import Store
+
+if TYPE_CHECKING:  # the set format, its coefficients and the store load when a command runs, not with the CLI
+    from workbench.calset import CalibrationSet
 
 sets_app = typer.Typer(no_args_is_help=True, help="Calibration sets: list, show, diff, export, approve, merge.")
 
 
 def load_set_ref(ref: str) -> CalibrationSet:
     """A set from a calibration JSON file path or a stored set's id (or unique id prefix)."""
+    from workbench.calset import CalibrationSet
+    from workbench.store import Store
+
     p = Path(ref)
     if p.suffix in (".json", ".yaml", ".yml") or p.exists():
         return CalibrationSet.load(p)
@@ -43,6 +35,8 @@ def load_set_ref(ref: str) -> CalibrationSet:
 def list_sets(unit: str = typer.Option(None, "--unit", help="Only this unit serial."),
               format: str = typer.Option("table", "--format", help="table | json")) -> None:
     """List stored calibration sets, newest first."""
+    from workbench.store import Store
+
     infos = Store().list_sets(unit)
     if format == "json":
         out.print_json(json.dumps([{"id": i.id, "serial": i.serial, "model": i.model, "version": i.version,
@@ -69,6 +63,8 @@ def _table(*columns: str, title: str | None = None) -> Table:
 
 def _triad_table(cal: CalibrationSet, triad: str) -> Table:
     """One row per coefficient (name, value ± 1σ, unit) in the lab units of ``workbench.units``."""
+    from workbench.coefficients import TRIAD_TITLES, sigma_text, triad_rows, value_text
+
     t = _table("coefficient", "value ± 1σ", "unit", title=f"{TRIAD_TITLES[triad]} ({triad})")
     for r in triad_rows(cal, triad):
         sig = "± " + sigma_text(r.sigma) if r.observed else "(σ not observed)"
@@ -80,6 +76,10 @@ def _triad_table(cal: CalibrationSet, triad: str) -> Table:
 def show(ref: str = typer.Argument(..., help="Set id (or prefix), or a calibration JSON / YAML file."),
          as_json: bool = typer.Option(False, "--json", help="Print the canonical JSON.")) -> None:
     """Show a calibration set in lab units (or as JSON)."""
+    import numpy as np
+
+    from workbench.coefficients import ci_text, noise_rows, thermal_reference
+
     cal = load_set_ref(ref)
     if as_json:
         out.print_json(cal.to_json())
@@ -107,6 +107,9 @@ def diff(old: str = typer.Argument(..., help="Older set: id or JSON file."),
          new: str = typer.Argument(..., help="Newer set: id or JSON file."),
          limit: int = typer.Option(40, help="Show at most this many rows.")) -> None:
     """Coefficient-by-coefficient changes, in units of their combined sigma."""
+    from workbench.coefficients import element_name, element_unit, value_text
+    from workbench.diff import NOT_OBSERVED, NOT_OBSERVED_A, NOT_OBSERVED_B, ONLY_A, ONLY_B, diff_sets
+
     a, b = load_set_ref(old), load_set_ref(new)
     rows = diff_sets(a, b)
     t = _table("coefficient", "A (old)", "B (new)", "unit", "change / σ")
@@ -134,6 +137,8 @@ def export(ref: str = typer.Argument(..., help="Set id (or prefix) or calibratio
            format: str = typer.Option("json", "--format", "-f", help="Export format."),
            out_file: Path = typer.Option(None, "--out", "-o", help="Write to this file (default: stdout).")) -> None:
     """Export a set: json, yaml and the formats listed by `workbench sets formats`."""
+    from workbench.calset import atomic_write_text
+
     ex = exporter(format)
     result = ex.export(load_set_ref(ref))
     for item in result.dropped:
@@ -157,6 +162,8 @@ def approve(ref: str = typer.Argument(..., help="Stored set id (or prefix)."),
             by: str = typer.Option(..., "--by", help="Who approves."),
             comment: str = typer.Option("", "--comment")) -> None:
     """Record an approval of a stored set (the set itself never changes)."""
+    from workbench.store import Store
+
     Store().approve(ref, by, comment)
     out.print(f"approved {ref} by {by}")
 
@@ -166,6 +173,9 @@ def merge_cmd(refs: list[str] = typer.Argument(..., help="Partial sets of one un
               out_file: Path = typer.Option(None, "--out", "-o", help="Also write the merged set here."),
               no_store: bool = typer.Option(False, "--no-store", help="Do not store the merged set.")) -> None:
     """Merge partial sets (e.g. accel from one procedure, gyro noise from another) into one."""
+    from workbench.calset import merge
+    from workbench.store import Store
+
     merged = merge(*[load_set_ref(r) for r in refs])
     if out_file is not None:
         merged.save(out_file)
@@ -185,6 +195,7 @@ def stats(grade: str = typer.Option(..., "--grade", help="Unit model (grade name
           outliers_only: bool = typer.Option(False, "--outliers", help="Only coefficients with outliers.")) -> None:
     """Distribution of each coefficient across the units of a grade (latest set per unit), outliers flagged."""
     from workbench.fleet.stats import OUTLIER_Z, coefficient_stats
+    from workbench.store import Store
 
     store = Store()
     serials = [s for s, model in store.units() if model == grade]
