@@ -11,13 +11,11 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-import numpy as np
 import typer
 from rich.table import Table
 
 from workbench.cli import out
 from workbench.errors import AnalysisError
-from workbench.units import from_unit, label, to_unit
 
 budget_app = typer.Typer(no_args_is_help=True, help="Error budgets: is this unit good enough for that facility?")
 FIG4_BASELINES_M = (0.5, 1.0, 1.5, 2.0, 3.0)
@@ -26,6 +24,10 @@ FIG4_ATTITUDE_DEG = (1.0, 5.0, 45.0)  # roll, pitch, heading of Fig. 4
 
 
 def _fmt3(values, unit: str, digits: int) -> str:
+    import numpy as np
+
+    from workbench.units import to_unit
+
     return " ".join(f"{v:.{digits}f}" for v in to_unit(np.asarray(values), unit))
 
 
@@ -44,7 +46,10 @@ def reference_facility(
         attitude_req_deg: float = typer.Option(0.15, "--attitude-req-deg", help="Required attitude 1-sigma, °."),
 ) -> None:
     """Covariance analysis of paper 003's reference facility with this unit, and the verdict."""
+    import numpy as np
+
     from workbench.nav import reference_facility as rf
+    from workbench.units import from_unit, label, to_unit
 
     if (set_ref is None) == (grade is None):
         raise AnalysisError("budget reference-facility: give exactly one of --set and --grade")
