@@ -12,6 +12,7 @@ import numpy as np
 from workbench.analysis.northfinding import find_north, to_result
 from workbench.options import Option, check_options
 from workbench.procedure import ProcedureResult
+from workbench.sequence import Hold
 from workbench.session import Session
 
 # sequence options every north-finding procedure has
@@ -36,6 +37,16 @@ ANALYSIS_OPTIONS = (
 )
 
 
+# maytagging and redundant (thesis table 4.2, sequences 8-12: "extracted one hour after the starting")
+DISCARD = Option("discard_s", "both", "float", 0.0, "warm-up: the sequence first holds the first position this "
+                 "long; the analysis leaves out every step starting earlier", unit="s", ge=0)
+
+
+def warm_up(first: Hold, discard_s: float) -> list:
+    """The warm-up hold (``discard_s`` at the first position, labelled ``warm-up``) before ``first``, or none."""
+    return [Hold(first.mount, first.table_angle, float(discard_s), "warm-up")] if discard_s > 0 else []
+
+
 def settle_option(settle_s: float = 2.0) -> Option:
     """The ``settle_s`` option of a north-finding procedure (both stages: the sequence records it)."""
     return Option("settle_s", "both", "float", settle_s, "dropped at the start of each step (analysis default: "
@@ -52,6 +63,9 @@ def analyze(name: str, method: str, declared, session: Session, options: dict) -
     kwargs = {k: o[k] for k in o if o[k] is not None and k != "settle_s"}
     kwargs["settle_s"] = o["settle_s"] if "settle_s" in o.given else \
         float(session.options.get("settle_s", o["settle_s"]))
+    if "discard_s" in o:  # the recorded warm-up unless given
+        kwargs["discard_s"] = o["discard_s"] if "discard_s" in o.given else \
+            float(session.options.get("discard_s", o["discard_s"]))
     if "bias" in kwargs:
         kwargs["bias"] = np.asarray(kwargs["bias"], float)
     nf = find_north(session, method, **kwargs)

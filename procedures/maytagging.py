@@ -34,6 +34,7 @@ OPTIONS = (
     _northfinding.START_OFFSET,
     _northfinding.MOUNT,
     _northfinding.settle_option(2.0),
+    _northfinding.DISCARD,
     *_northfinding.ANALYSIS_OPTIONS,
 )
 DEFAULTS = defaults(OPTIONS)
@@ -80,8 +81,9 @@ def sequence(spec, **options) -> Sequence:
         unit = [to_b, Hold(None, None, dwell_s, "B"), to_a]
         steps = [a, Repeat([*unit, Hold(None, None, dwell_s, "A")], count // 2 - 1), *unit] if count > 2 \
             else [a, *unit]
-    return with_options(Sequence(NAME, steps), dwell_s=dwell_s, count=count, ordering=ordering,
-                        start_offset_deg=start_offset_deg, settle_s=settle_s)
+    return with_options(Sequence(NAME, _northfinding.warm_up(a, o["discard_s"]) + steps), dwell_s=dwell_s,
+                        count=count, ordering=ordering, start_offset_deg=start_offset_deg, settle_s=settle_s,
+                        discard_s=o["discard_s"])
 
 
 def analyze(session, **options):

@@ -27,6 +27,7 @@ OPTIONS = (
     _northfinding.START_OFFSET,
     _northfinding.MOUNT,
     _northfinding.settle_option(2.0),
+    _northfinding.DISCARD,
     *(o for o in _northfinding.ANALYSIS_OPTIONS if o.name != "positions_per_turn"),  # eight, by the method
 )
 DEFAULTS = defaults(OPTIONS)
@@ -43,10 +44,10 @@ def sequence(spec, **options) -> Sequence:
                             f"{settle_s:g} s")
     if int(turns) < 1:
         raise RigLimitError(f"{NAME}: turns {turns} must be >= 1")
-    steps = [Hold(mount, np.radians(start_offset_deg), dwell_s, "0"),
-             Repeat([Index(STEP, dwell_s)], 8 * int(turns) - 1)]
+    first = Hold(mount, np.radians(start_offset_deg), dwell_s, "0")
+    steps = [*_northfinding.warm_up(first, o["discard_s"]), first, Repeat([Index(STEP, dwell_s)], 8 * int(turns) - 1)]
     return with_options(Sequence(NAME, steps), dwell_s=dwell_s, turns=int(turns), start_offset_deg=start_offset_deg,
-                        settle_s=settle_s)
+                        settle_s=settle_s, discard_s=o["discard_s"])
 
 
 def analyze(session, **options):

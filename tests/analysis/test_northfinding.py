@@ -363,3 +363,31 @@ def test_applies_only_to_grades_that_resolve_earth_rate():
 
     assert may.applies(CVG) and may.applies(load_spec("navigation_grade"))
     assert not may.applies(load_spec("industrial_mems")) and not may.applies(load_spec("consumer_9axis"))
+
+
+def test_discard_s_warm_up_is_held_and_left_out():
+    # thesis table 4.2, sequences 8-11: "the measurements are extracted one hour after the starting".
+    # The sequence holds the first position discard_s first (labelled warm-up); the analysis leaves
+    # out every step that starts earlier. Given to the analysis alone, the early positions go.
+    import procedures.maytagging as may
+    import procedures.redundant as red
+    from workbench.errors import AnalysisError
+    from workbench.sim import simulate
+
+    seq = may.sequence(CVG, count=2, dwell_s=20.0, discard_s=45.0)
+    s, _ = simulate(seq, CVG, seed=12)
+    first = s.steps[0]
+    assert first.label == "warm-up" and first.t_end - first.t_start == pytest.approx(45.0, abs=0.02)
+    res = may.analyze(s)
+    assert len(res.result["pair_azimuths_deg"]) == 2  # the warm-up hold is not a position
+    # 2 pairs of 18 s: within 4 sigma / sqrt(2) of the grade-ADEV pair theory (as the test above)
+    assert abs(res.result["azimuth_error_mrad"]) < 4 * res.result["theory"]["allan_pair_sigma_mrad"] / np.sqrt(2)
+    # the analysis' default is the recorded warm-up; the warm-up hold counted (discard_s 0) is one more static step
+    assert len(nfm.static_observations(s, 2.0)) == 5 and "warm-up" not in res.summary[0]
+
+    s, _ = simulate(red.sequence(CVG, dwell_s=10.0, turns=2), CVG, seed=6)
+    one_turn = s.steps[8].t_start - float(s.samples["t"].iloc[0]) - 1.0  # s: the second turn starts after it
+    rows = red.analyze(s, discard_s=one_turn).result["redundant"]["pairings"]
+    assert all(r["n"] == 1 for r in rows)  # one turn left of the two
+    with pytest.raises(AnalysisError, match="no step starts after the 10000 s discarded"):
+        red.analyze(s, discard_s=1e4)

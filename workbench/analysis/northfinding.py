@@ -752,7 +752,7 @@ def _theory(method: str, nf_parts: dict, noise: NoiseTerms | None, series_fn, se
 def find_north(session: Session, method: str, settle_s: float = 2.0, drift: bool | None = None,
                index_tol_deg: float = 0.05, max_tilt_deg: float = 1.0, grade=None,
                bias: np.ndarray | None = None, positions_per_turn: int | None = None,
-               bin_deg: float = 5.0, axes: Sequence[int] | None = None) -> NorthFinding:
+               bin_deg: float = 5.0, axes: Sequence[int] | None = None, discard_s: float = 0.0) -> NorthFinding:
     """Find north from a session with ``method`` in :data:`METHODS`.
 
     * ``maytagging``: static steps paired in time order, 180° apart within ``index_tol_deg``;
@@ -766,7 +766,9 @@ def find_north(session: Session, method: str, settle_s: float = 2.0, drift: bool
     (default: off for maytagging, on otherwise); ``max_tilt_deg``: body x must be level and
     other axes level or vertical within it; ``grade``: noise terms for the theoretical
     figures (default: the unit's model if it names a grade, else the session's own ADEV);
-    ``axes``: the gyro's sensing axes (default: the grade's ``sensing_axes``, else all three).
+    ``axes``: the gyro's sensing axes (default: the grade's ``sensing_axes``, else all three);
+    ``discard_s``: steps that start less than this after the session's first sample are left
+    out (warm-up: thesis table 4.2, sequences 8-11 "extracted one hour after the starting").
     The azimuth never uses the site's ``table_zero_azimuth_deg``; when known it gives
     ``true_azimuth``.
     """
@@ -786,6 +788,12 @@ def find_north(session: Session, method: str, settle_s: float = 2.0, drift: bool
     else:
         obs = static_observations(session, settle_s)
     obs = obs.subset(np.argsort(obs.t))
+    if discard_s > 0:
+        t0 = float(session.samples["t"].iloc[0])
+        obs = obs.subset(np.array([session.step(int(i)).t_start - t0 >= discard_s for i in obs.step], bool))
+        if len(obs) == 0:
+            raise AnalysisError(f"{session.name}: {method}: no step starts after the {discard_s:g} s discarded "
+                                "for warm-up")
     if axes is None:
         axes = spec.specs["gyro"].sensing_axes if spec is not None else (0, 1, 2)
     geom = _session_mount(session, obs, max_tilt, axes)
