@@ -12,7 +12,7 @@ State: geodetic latitude, longitude (rad), height (m), velocity w.r.t. the Earth
 (shared/seeds/001_...) sec. 2 uses the same mechanisation). The scheme is second order in
 ``dt``; its error on a simulated drive is measured in ``tests/nav/test_ins.py``.
 
-Public: :func:`radii`, :func:`mechanise`, :class:`NavState`.
+Public: :func:`radii`, :func:`expm_so3`, :func:`mechanise`, :class:`NavState`.
 """
 
 from __future__ import annotations
@@ -45,8 +45,8 @@ def _gravity(lat: float, h: float) -> float:
 
 
 @numba.njit(cache=True)
-def _expm_so3(a0: float, a1: float, a2: float) -> np.ndarray:
-    """Rotation matrix Exp([a]x) (Rodrigues)."""
+def expm_so3(a0: float, a1: float, a2: float) -> np.ndarray:
+    """Rotation matrix ``Exp([a×])`` (3, 3) of the rotation vector ``a`` rad (Rodrigues)."""
     th2 = a0 * a0 + a1 * a1 + a2 * a2
     th = np.sqrt(th2)
     if th < 1e-8:
@@ -71,8 +71,8 @@ def _step(lat, lon, h, v, c, w0, w1, f0, f1, dt):
     """One mechanisation interval; returns the new (lat, lon, h, v, C)."""
     w_ie, w_en = _transport(lat, h, v)
     w_in = w_ie + w_en
-    cb = c @ _expm_so3(0.5 * (w0[0] + w1[0]) * dt, 0.5 * (w0[1] + w1[1]) * dt, 0.5 * (w0[2] + w1[2]) * dt)
-    c_new = _expm_so3(-w_in[0] * dt, -w_in[1] * dt, -w_in[2] * dt) @ cb
+    cb = c @ expm_so3(0.5 * (w0[0] + w1[0]) * dt, 0.5 * (w0[1] + w1[1]) * dt, 0.5 * (w0[2] + w1[2]) * dt)
+    c_new = expm_so3(-w_in[0] * dt, -w_in[1] * dt, -w_in[2] * dt) @ cb
     fn = 0.5 * (c @ f0 + c_new @ f1)
     g = _gravity(lat, h)
     cor = 2.0 * w_ie + w_en

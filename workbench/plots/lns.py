@@ -1,6 +1,6 @@
 """Figures of the AXD-LNS validation, drawn from the stored result payload (thesis Fig. 2.16-2.20).
 
-Public: :func:`lns_figures`.
+Public: :func:`lns_figures`, :func:`land_ins_figures`.
 """
 
 from __future__ import annotations
@@ -55,3 +55,20 @@ def lns_figures(payload: dict) -> dict:
     ax.legend(fontsize=7)
     figs["odo_scale"] = fig
     return figs
+
+
+def land_ins_figures(payload: dict) -> dict:
+    """``horizontal_error``: error against the reference and the filter's 1-sigma over time, raw and
+    calibrated (paper 001 Fig. 4-4 style)."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(7, 4))
+    ax = fig.add_subplot()
+    for mode, r in payload["runs"].items():
+        if "error_m" in r:
+            ax.plot(r["t_ref"], r["error_m"], lw=1, label=f"{mode}: error vs reference")
+        ax.plot(r["t"], np.hypot(r["sigma_n"], r["sigma_e"]), lw=0.8, ls="--", label=f"{mode}: filter 1-sigma")
+    ax.set(xlabel="time (s)", ylabel="horizontal position (m)", yscale="log",
+           title="Land INS with NHC / ZUPT / ZARUPT (paper 001)")
+    ax.legend(fontsize=7)
+    return {"horizontal_error": fig}
