@@ -9,6 +9,7 @@ record has ~5-8 % (the 95 % intervals the fit reports), so the bounds are >= 3 s
 
 import numpy as np
 import pytest
+from scipy.stats import chi2
 
 from workbench.analysis.allan_fit import FLICKER, TERMS, analyze_record, fit_channel, read_offs
 from workbench.calset import CalibrationSet, Unit
@@ -112,3 +113,78 @@ def test_classic_read_offs_on_closed_forms():
     flat = read_offs(tau, np.full_like(tau, np.sqrt(FLICKER) * 5e-5))
     assert flat["bias_instability"] == pytest.approx(5e-5, rel=1e-12)
     assert np.isnan(flat["white"]) and np.isnan(flat["rrw"])
+
+
+def _simulated_curve(noise, axis, rate, hours, rng):
+    """OADEV at octave taus of a record of ``hours`` with the grade's terms: the model AVAR times
+    chi2(edf)/edf per point, edf (Greenhall) for the noise type dominating that tau, neighbouring
+    points correlated (0.6, about what overlapping estimates at octave taus share) through a
+    Gaussian AR(1) mapped to the chi-squared quantiles."""
+    from scipy.stats import norm
+
+    from workbench.analysis.allan_ci import edf_greenhall
+
+    from workbench.analysis.allan_fit import basis
+
+    n_phase = int(hours * 3600 * rate) + 1
+    m = 2 ** np.arange(int(np.log2(n_phase / 3)))
+    tau = m / rate
+    theta = np.array([noise.quantization[axis], noise.white[axis], noise.bias_instability[axis],
+                      noise.rrw[axis], 0.0]) ** 2
+    parts = basis(tau) * theta
+    alpha = np.array([2, 0, -1, -2, -2])[np.argmax(parts, axis=1)]
+    edf = np.array([edf_greenhall(int(al), 2, int(mk), n_phase) for al, mk in zip(alpha, m)])
+    z = np.empty(len(m))
+    z[0] = rng.standard_normal()
+    for k in range(1, len(m)):
+        z[k] = 0.6 * z[k - 1] + 0.8 * rng.standard_normal()
+    avar = parts.sum(axis=1) * chi2.ppf(norm.cdf(z), edf) / edf
+    dev = np.sqrt(avar)
+    return tau, dev, edf, dev * np.sqrt(edf / chi2.ppf(0.025, edf))
+
+
+@pytest.mark.filterwarnings("error::RuntimeWarning")
+@pytest.mark.parametrize("grade", ["consumer_9axis", "cvg_two_axis", "hg1700", "industrial_mems", "isa100c",
+                                   "navigation_grade", "quasi_tactical", "tactical_low_noise"])
+def test_fit_gives_finite_intervals_on_seeds_1_to_20(grade):
+    # regression: hg1700 with seed 1 on a 1 h record (the `workbench run allan -o duration_s=3600`
+    # case) gave an infinite RRW upper limit (chi2.ppf(0.025, nu) = 0 for a tiny nu) and a set
+    # the store rejects. Every grade's gyro, seeds 1-20, on 1 h curves: every interval finite,
+    # containing the fitted value, and no warning.
+    spec = load_spec(grade)
+    for seed in range(1, 21):
+        rng = np.random.default_rng(seed)
+        tau, dev, edf, hi = _simulated_curve(spec.gyro.noise, 0, spec.sample_rate_hz, 1.0, rng)
+        fit = fit_channel(tau, dev, edf, hi, "gx")
+        for t in fit.terms.values():
+            lo, up = t.ci95
+            assert np.isfinite(lo) and np.isfinite(up) and 0.0 <= lo <= up, (seed, t)
+            if t.observed:
+                assert lo <= t.value * (1 + 1e-9) and t.value <= up * (1 + 1e-9), (seed, t)
+
+
+@pytest.mark.filterwarnings("error::RuntimeWarning")
+def test_hg1700_seed1_curve_that_failed_gives_finite_intervals():
+    # the gy curve of `workbench run allan --unit hg1700 --rig sim -o duration_s=3600 -o soak=false`
+    # with seed 1 (1 h at 100 Hz, octave taus from 0.01 s), as the procedure measured it: the old
+    # fit selected RRW with so little information that chi2.ppf(0.025, nu) was 0 and its upper
+    # limit infinite. Truth (fixtures/units/hg1700.yaml): Q 2 urad, N 0.125 deg/sqrt(h)
+    # = 3.636e-5 rad/sqrt(s), B 0.25 deg/h, K 0.1 deg/h/sqrt(h) = 8.08e-9 rad/s/sqrt(s).
+    tau = 0.01 * 2.0 ** np.arange(18)
+    dev = np.array([5.0340709564014358e-04, 3.0990907327302906e-04, 2.0166132686481024e-04, 1.3590743952412966e-04,
+                    9.3456705236649130e-05, 6.5030810791141954e-05, 4.5412864832445056e-05, 3.1643655973222296e-05,
+                    2.2224096601400472e-05, 1.5459590596031772e-05, 1.1378026574425657e-05, 8.0428599392060934e-06,
+                    5.8757399653192903e-06, 4.1895277532474976e-06, 3.4194216769607642e-06, 2.1121616944439080e-06,
+                    1.8846963213514994e-06, 2.8964531902958283e-06])
+    edf = np.array([2.8173855198502506e+05, 1.9504904193593637e+05, 1.1074836452439791e+05, 6.0418357565028818e+04,
+                    3.1821272231094565e+04, 1.6369258913143989e+04, 8.3064989962801646e+03, 4.1839524363730370e+03,
+                    2.0989481238036683e+03, 1.0503914220840720e+03, 5.2509559744710418e+02, 2.6142442594690141e+02,
+                    1.2959052274707074e+02, 6.3677113858392339e+01, 3.0728290788642312e+01, 1.4273705110201512e+01,
+                    4.6892790537590665e+00, 1.2361645255408913e+00])
+    hi = dev * np.sqrt(edf / chi2.ppf(0.025, edf))
+    fit = fit_channel(tau, dev, edf, hi, "gy")
+    truth = {"quantization": 2e-6, "white": np.radians(0.125) / 60, "bias_instability": np.radians(0.25) / 3600,
+             "rrw": np.radians(0.1) / 3600 / 60, "rate_ramp": 0.0}
+    for name, t in fit.terms.items():
+        assert np.all(np.isfinite(t.ci95)), name
+        assert t.ci95[0] <= truth[name] <= t.ci95[1], (name, t)  # one record: each interval is a 95 % one

@@ -6,23 +6,22 @@ Model of the Allan variance of rate data (IEEE Std 952-1997 Annex C, table C.2):
 
 Q quantization (rad | m/s), N white noise density (ARW rad/s/sqrt(Hz) | VRW m/s^2/sqrt(Hz)),
 B bias instability (rad/s | m/s^2), K rate random walk (rad/s^2/sqrt(Hz) | m/s^3/sqrt(Hz)),
-R rate ramp (rad/s^2 | m/s^3). The model is linear in the squared coefficients theta, which
-are fitted non-negatively (scipy NNLS) with weights 1 / var(AVAR_k), var = 2 model_k^2 / edf_k
-(the chi-squared variance of each point, Greenhall EDF), re-weighted from the model until it
-converges. Every subset of terms is fitted; subsets in which some term carries a third of
-the model at fewer than two of the measured taus are rejected (the data do not show that term),
-and among the rest the Bayesian information criterion on the weighted residuals picks one
-(chi-squared divided by 2: neighbouring overlapping AVAR points are correlated, about half
-of their information is shared); models within 2 of the best score are indistinguishable and
-the one with fewest terms is taken. A fitted term whose removal raises that chi-squared by less
-than 3.84 (95 %, 1 dof) gets a lower 95 % limit of 0: the data do not exclude its absence.
-A term outside the chosen model is "not observed": its value is NaN and its 95 % interval is
-[0, upper bound], the bound being the smallest ratio of a point's upper 97.5 % limit to the
-term's basis function. For a fitted term the interval follows from the variance of theta
-through a chi-squared law with edf = 2 theta^2 / var(theta); the variance is the least-squares
-one (inflated by the reduced chi-squared when above 1) but at least what the single most
-informative AVAR point gives alone (the points are correlated, so treating them as
-independent would overstate the information).
+R rate ramp (rad/s^2 | m/s^3). The model is linear in the squared coefficients theta. Each AVAR
+point is a scaled chi-squared variable with the Greenhall EDF, so the fit maximises the gamma
+likelihood (non-negative IRLS with weights edf / model^2, the identity-link gamma GLM); its
+deviance is divided by :data:`CORRELATION` (neighbouring overlapping points share about half
+their information).
+
+Values and intervals come from the full five-term fit: a term's 95 % interval is the set of
+values whose profile deviance (the other four terms refitted, all non-negative) lies within
+chi2(0.95, 1) = 3.84 of the minimum. It does not depend on which terms are reported, so
+choosing the model does not make the intervals optimistic (a rate random walk selected because
+the last octaves fluctuated up keeps an interval reaching down to the truth: the selection of
+the old subset/BIC fit reported 2-2.5x RRW with intervals excluding it, issue 19 item 5).
+Reported ("observed") are the terms that survive backward elimination from the full model by
+likelihood ratio (a term is dropped while removing it raises the deviance by less than 3.84);
+a term not observed is NaN with the interval [0, profile upper limit]. An observed term whose
+profile reaches 0 gets a lower limit of 0: the data do not exclude its absence.
 
 Classic read-offs for comparison with datasheets and the thesis tables (1.1, 1.2, 2.1, 4.1):
 N on the slope -1/2 line at tau = 1 s, K on the slope +1/2 line at tau = 3 s, B = min ADEV / 0.664.
@@ -33,7 +32,6 @@ Public: :data:`TERMS`, :class:`NoiseTerm`, :class:`ChannelNoise`, :func:`fit_cha
 
 from __future__ import annotations
 
-import itertools
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -46,9 +44,6 @@ from workbench.analysis.allan_ci import DeviationCI
 
 TERMS = ("quantization", "white", "bias_instability", "rrw", "rate_ramp")
 FLICKER = 2.0 * np.log(2.0) / np.pi  # AVAR per B^2; ADEV floor 0.664 B
-VISIBLE_SHARE = 1.0 / 3.0  # a term must carry this share of the model AVAR ...
-VISIBLE_POINTS = 2  # ... at this many taus at least
-PARSIMONY = 2.0  # BIC difference below which the model with fewer terms is preferred
 CORRELATION = 2.0  # overlapping AVAR points at octave taus share about half their information:
 # weighted chi-squared differences are divided by this before model comparison
 _IRLS_ITER = 30
@@ -110,17 +105,96 @@ def _irls(a: np.ndarray, avar: np.ndarray, edf: np.ndarray, cols: list[int]) -> 
     return theta, edf / (2.0 * np.maximum(model, 1e-300) ** 2)
 
 
-def _absence_allowed(a: np.ndarray, avar: np.ndarray, edf: np.ndarray, without: list[int], chi_best: float) -> bool:
-    """Whether the model without a term fits within the 95 % chi-squared(1) margin of the best.
+def deviance(a: np.ndarray, avar: np.ndarray, edf: np.ndarray, theta: np.ndarray) -> float:
+    """Deviance of the model ``a @ theta`` for AVAR points ``avar`` with ``edf`` degrees of freedom.
 
-    The reduced model is refitted (non-negative, its coefficients free to reach zero); no term
-    left at all means zero noise, which the data always exclude.
+    Each point is a scaled chi-squared variable, avar_k ~ model_k chi2(edf_k) / edf_k; minus twice
+    its log-likelihood, up to a constant, is edf_k (r_k - 1 - ln r_k) with r_k = avar_k / model_k
+    (the gamma deviance). Divided by :data:`CORRELATION` for the information neighbouring
+    overlapping points share. The non-negative IRLS of :func:`_irls` minimises it.
     """
-    if not without:
-        return False
-    theta, w = _irls(a, avar, edf, without)
-    chi = float(np.sum(w * (avar - a @ theta) ** 2)) / CORRELATION
-    return chi - chi_best < chi2.ppf(0.95, 1)
+    model = a @ theta
+    if not np.all(model > 0):
+        return float("inf")
+    r = avar / model
+    return float(np.sum(edf * (r - 1.0 - np.log(r)))) / CORRELATION
+
+
+def _profile(a: np.ndarray, avar: np.ndarray, edf: np.ndarray, k: int, t: float, start: np.ndarray) -> float:
+    """Deviance of the best non-negative model with theta_k fixed at ``t`` (the other four free),
+    iterated from the weights of the model ``start`` (5,) with its k-th term set to ``t``."""
+    cols = [c for c in range(5) if c != k]
+    rest = avar - t * a[:, k]
+    theta = start.copy()
+    theta[k] = t
+    model = np.maximum(a @ theta, 1e-300)
+    for _ in range(_IRLS_ITER):
+        sw = np.sqrt(edf) / np.maximum(model, 1e-300)
+        coef, _ = nnls(a[:, cols] * sw[:, None], rest * sw)
+        new = np.zeros(5)
+        new[cols] = coef
+        new[k] = t
+        model = a @ new
+        done = float(np.max(np.abs(new - theta))) <= 1e-6 * float(np.max(new))
+        theta = new
+        if done:
+            break
+    return deviance(a, avar, edf, theta)
+
+
+def profile_interval(a: np.ndarray, avar: np.ndarray, edf: np.ndarray, k: int, full: np.ndarray, d_min: float,
+                     t_cap: float, level: float = 0.95) -> tuple[float, float]:
+    """Profile-likelihood interval (lo, hi) of theta_k over all non-negative five-term models.
+
+    The set of theta_k whose profile deviance lies within chi2(level, 1) of the global minimum
+    ``d_min`` of the full fit ``full`` (5,); independent of which model the selection picked (an
+    interval of the selected model alone would inherit the selection's optimism). ``t_cap`` is
+    where the search for the upper limit starts (it grows by 4 until the profile exceeds the
+    threshold).
+    """
+    from scipy.optimize import brentq
+
+    limit = d_min + chi2.ppf(level, 1)
+    t_hat = float(full[k])
+
+    def excess(t: float) -> float:
+        return _profile(a, avar, edf, k, t, full) - limit
+
+    top = max(t_cap, t_hat * 2.0, 1e-300)
+    for _ in range(60):
+        if excess(top) > 0:
+            break
+        top *= 4.0
+    tol = 1e-7 * top  # brentq's default absolute tolerance (2e-12) is larger than a squared term
+    lo = 0.0
+    if t_hat > 0 and excess(0.0) > 0:
+        lo = brentq(excess, 0.0, t_hat, xtol=tol, rtol=1e-5) if excess(t_hat) < 0 else t_hat
+    base = t_hat if excess(t_hat) < 0 else 0.0
+    hi = brentq(excess, base, top, xtol=tol, rtol=1e-5) if excess(base) < 0 else top
+    return lo, hi
+
+
+def _select(a: np.ndarray, avar: np.ndarray, edf: np.ndarray, full: np.ndarray) -> list[int]:
+    """Terms the data show: backward elimination from the full model by likelihood ratio.
+
+    Starting from the terms of the full fit that are non-zero, the term whose removal (the others
+    refitted) raises the deviance least is dropped while that rise is below chi2(0.95, 1) = 3.84;
+    the remaining terms are "observed". At least one term always stays.
+    """
+    cols = [k for k in range(5) if full[k] > 0]
+    d_cur = deviance(a, avar, edf, full)
+    while len(cols) > 1:
+        rises = []
+        for k in cols:
+            rest = [c for c in cols if c != k]
+            theta, _ = _irls(a, avar, edf, rest)
+            rises.append((deviance(a, avar, edf, theta) - d_cur, k))
+        rise, k = min(rises)
+        if rise >= chi2.ppf(0.95, 1):
+            break
+        cols.remove(k)
+        d_cur += rise
+    return cols
 
 
 def _dominant_range(k: int, theta: np.ndarray, tau_lo: float, tau_hi: float) -> tuple[float, float] | None:
@@ -139,47 +213,28 @@ def fit_channel(tau: np.ndarray, dev: np.ndarray, edf: np.ndarray, hi: np.ndarra
     """
     ok = np.isfinite(dev) & (dev > 0) & np.isfinite(edf) & (edf > 0)
     tau, avar, edf, hi = tau[ok], dev[ok] ** 2, edf[ok], hi[ok]
-    a = basis(tau)
-    fits: dict[tuple[int, ...], tuple[np.ndarray, np.ndarray, float]] = {}
-    for size in range(1, 6):
-        for cols in itertools.combinations(range(5), size):
-            theta, w = _irls(a, avar, edf, list(cols))
-            model = a @ theta
-            if np.any(theta[list(cols)] <= 0) or not np.all(model > 0):
-                continue
-            fits[cols] = (theta, w, float(np.sum(w * (avar - model) ** 2)) / CORRELATION)
-    visible = {cols: f for cols, f in fits.items()
-               if np.all(np.sum((a[:, list(cols)] * f[0][list(cols)]) / (a @ f[0])[:, None] >= VISIBLE_SHARE, axis=0)
-                         >= VISIBLE_POINTS)}
-    if not visible:
+    if len(tau) == 0:
         raise ValueError(f"{column}: no noise model fits the Allan curve")
-    score = {cols: f[2] + len(cols) * np.log(len(tau)) for cols, f in visible.items()}
-    top = min(score.values())
-    # models within 2 of the best score are not distinguishable: take the simplest of them
-    best = min((c for c in score if score[c] <= top + PARSIMONY), key=lambda c: (len(c), score[c]))
-    theta, w, chi_best = visible[best]
-    cols = list(best)
-    model = a @ theta
-    dof = max(len(tau) - len(cols), 1)
-    chi2_red = float(np.sum(w * (avar - model) ** 2) / dof)
-    aw = a[:, cols] * np.sqrt(w)[:, None]
-    cov = np.linalg.pinv(aw.T @ aw) * max(chi2_red, 1.0)
+    a = basis(tau)
+    full, _ = _irls(a, avar, edf, list(range(5)))
+    d_min = deviance(a, avar, edf, full)
+    intervals = []
+    for k in range(5):
+        # the smallest single-point 97.5 % bound: a start for the search of the upper limit
+        cap = float(np.min(hi ** 2 / a[:, k]))
+        intervals.append(profile_interval(a, avar, edf, k, full, d_min, cap))
+    cols = _select(a, avar, edf, full)
+    theta = np.where(np.isin(np.arange(5), cols), full, 0.0)
+    w = edf / (2.0 * (a @ full) ** 2)
+    chi2_red = float(np.sum(w * (avar - a @ full) ** 2) / max(len(tau) - len(cols), 1))
     terms: dict[str, NoiseTerm] = {}
     for k, name in enumerate(TERMS):
+        lo, up = intervals[k]
         if k in cols:
-            # adjacent AVAR points are correlated, so the least-squares variance is optimistic:
-            # never claim more than the single most informative point gives on its own
-            var = max(cov[cols.index(k), cols.index(k)], float(np.min(1.0 / (w * a[:, k] ** 2))))
-            nu = 2.0 * theta[k] ** 2 / var if var > 0 else np.inf
-            lo, up = ((theta[k], theta[k]) if not np.isfinite(nu) else
-                      (nu * theta[k] / chi2.ppf(0.975, nu), nu * theta[k] / chi2.ppf(0.025, nu)))
-            if _absence_allowed(a, avar, edf, [c for c in best if c != k], chi_best):
-                lo = 0.0  # the data do not exclude the term's absence at 95 %
-            terms[name] = NoiseTerm(name, float(np.sqrt(theta[k])), (float(np.sqrt(lo)), float(np.sqrt(up))), True,
+            terms[name] = NoiseTerm(name, float(np.sqrt(full[k])), (float(np.sqrt(lo)), float(np.sqrt(up))), True,
                                     _dominant_range(k, theta, float(tau.min()), float(tau.max())))
         else:
-            bound = float(np.sqrt(np.min(hi ** 2 / a[:, k])))
-            terms[name] = NoiseTerm(name, float("nan"), (0.0, bound), False, None)
+            terms[name] = NoiseTerm(name, float("nan"), (0.0, float(np.sqrt(up))), False, None)
     return ChannelNoise(column, terms, theta, chi2_red, read_offs(tau, np.sqrt(avar)))
 
 
