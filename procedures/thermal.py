@@ -33,7 +33,7 @@ from workbench.errors import RigLimitError
 from workbench.options import Option, check_options, defaults
 from workbench.procedure import ProcedureResult
 from workbench.sequence import Hold, Ramp, Rotate, Sequence, Soak, with_options
-from workbench.units import to_unit
+from workbench.units import fit_unit, label, to_unit
 
 NAME = "thermal"
 TITLE = "Thermal sweep (chamber soaks or ramps): bias and scale factor vs temperature"
@@ -60,6 +60,8 @@ OPTIONS = (
     Option("max_order", "analysis", "int", 5, "highest polynomial order tried", ge=0),
     Option("order", "analysis", "any", None, "polynomial order (default: cross-validated)"),
     Option("hysteresis", "analysis", "str", "auto", "direction term", choices=("auto", "on", "off")),
+    Option("order_per_axis", "analysis", "bool", True, "each axis its own cross-validated order (else one "
+           "order for the triad)"),
     Option("ramp_window_s", "analysis", "float", 60.0, "averaging window of a ramp", unit="s", gt=0),
     Option("reference", "analysis", "str", None, "calibration JSON whose M and G the ramp fit removes"),
     Option("position_sigma_deg", "analysis", "float", 0.01, "1-sigma tilt of each position ('auto' estimates "
@@ -76,7 +78,7 @@ OPTIONS = (
 DEFAULTS = defaults(OPTIONS)
 SIX = ("z-down", "z-up", "x-up", "x-down", "y-up", "y-down")
 RATE_MOUNTS = ("z-down", "x-up", "y-up")
-_ANALYSIS_KEYS = ("t_ref_c", "max_order", "order", "hysteresis", "settle_tol_c_per_min", "settle_window_s",
+_ANALYSIS_KEYS = ("t_ref_c", "max_order", "order", "hysteresis", "order_per_axis", "settle_tol_c_per_min", "settle_window_s",
                   "ramp_window_s")
 
 
@@ -123,13 +125,14 @@ def sequence(spec, **options) -> Sequence:
 def _summary(result) -> list[str]:
     lines = [f"thermal ({result.source}): {result.t_min_c:.1f}..{result.t_max_c:.1f} °C, t_ref {result.t_ref_c:g} °C"]
     for q, f in result.fits.items():
-        unit = "ppm" if q.endswith("scale") else ("deg/s" if q.startswith("gyro") else "mg")
+        unit = fit_unit(q)
         rms = ", ".join(f"{v:.3g}" for v in to_unit(f.cv_rms_chosen, unit))
-        line = f"{q}: order {f.order}, held-out RMS [{rms}] {unit}"
+        orders = ", ".join(f"{a} {k}" for a, k in zip("xyz", f.orders))
+        line = f"{q}: order {orders} (per axis), held-out RMS [{rms}] {label(unit)}"
         if np.isfinite(f.hysteresis).any():
             h = ", ".join(f"{a:.3g}±{b:.2g}" for a, b in zip(to_unit(f.hysteresis, unit),
                                                              to_unit(f.hysteresis_sigma, unit)))
-            line += f"; hysteresis (up - down) [{h}] {unit}" + (" (modelled)" if f.hysteresis_modelled.any() else "")
+            line += f"; hysteresis (up - down) [{h}] {label(unit)}" + (" (modelled)" if f.hysteresis_modelled.any() else "")
         lines.append(line)
     return lines
 

@@ -110,6 +110,12 @@ def unit_of(triad: str, quantity: str) -> str:
     return QUANTITIES[key]
 
 
+def fit_unit(quantity: str) -> str:
+    """Lab unit of a thermal fit's quantity ``'<triad>.bias'`` / ``'<triad>.scale'`` (``gyro.bias`` -> deg/h)."""
+    triad, what = quantity.split(".", 1)
+    return unit_of(triad, "scale_factor" if what == "scale" else "bias")
+
+
 def thermal_label(triad: str, field: str, k: int) -> str:
     """Label of thermal coefficient ``k`` of ``field`` (``bias_poly``/``scale_poly``): ``'°/h/°C²'``."""
     base = label(unit_of(triad, f"thermal.{field}"))

@@ -28,5 +28,5 @@ def test_thermal_page_shows_models_and_exports(seeded_db, tmp_path):
     assert "Thermal sweeps" in [t.value for t in at.title]
     models = at.dataframe[0].value
     assert set(models.quantity) >= {"gyro.bias", "accel.bias", "accel.scale"}
-    assert models["held-out RMS"].str.contains("°/s").any()  # lab units
+    assert models["held-out RMS"].str.contains("°/h").any()  # lab units of workbench.units (gyro bias °/h)
     assert any(c.value.startswith("# PX4 parameters") for c in at.code)

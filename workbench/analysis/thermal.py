@@ -241,36 +241,48 @@ def _group_means(err: np.ndarray, groups: np.ndarray) -> np.ndarray:
     return np.array([err[groups == g].mean() for g in np.unique(groups)])
 
 
-def _select_order(cv: list[dict], groups: np.ndarray) -> int:
-    """Common order of the axes: one-standard-error rule on the axis-normalised held-out MSE.
+def _one_se(per_group: Mapping) -> int:
+    """Lowest order whose mean held-out error is within one standard error of the best order's.
 
-    ``cv[axis][order]`` holds held-out squared errors per point. Each axis's per-group mean
-    squared errors are divided by that axis's best mean, averaged over the axes, and the
-    smallest order within one standard error (over groups) of the best is chosen.
+    ``per_group[order]`` holds one held-out mean squared error per cross-validation group. The
+    standard error is that of the paired difference to the best order over the groups (the
+    orders are compared on the same held-out temperatures, so the spread the groups share
+    cancels); the one-standard-error rule of Hastie et al., ESL sec. 7.10.
     """
-    orders = sorted(set.intersection(*(set(c) for c in cv)))
-    score = {}
-    for k in orders:
-        per_axis = []
-        for c in cv:
-            best = min(_group_means(e, groups).mean() for e in c.values())
-            per_axis.append(_group_means(c[k], groups) / best)
-        score[k] = np.mean(per_axis, axis=0)
-    mse = {k: v.mean() for k, v in score.items()}
+    mse = {k: v.mean() for k, v in per_group.items()}
     best = min(mse, key=mse.get)
-    se = score[best].std(ddof=1) / np.sqrt(len(score[best])) if len(score[best]) > 1 else 0.0
-    return min(k for k in orders if mse[k] <= mse[best] + se)
+
+    def se(k) -> float:
+        d = per_group[k] - per_group[best]
+        return float(d.std(ddof=1) / np.sqrt(len(d))) if len(d) > 1 else 0.0
+
+    return min(k for k in mse if mse[k] <= mse[best] + se(k))
+
+
+def _select_order(cv: dict, groups: np.ndarray) -> int:
+    """Order of one axis by the one-standard-error rule; ``cv[order]`` = held-out squared errors per point."""
+    return _one_se({k: _group_means(e, groups) for k, e in cv.items()})
+
+
+def _select_common_order(cv: list[dict], groups: np.ndarray) -> int:
+    """One order for all axes: the one-standard-error rule on the axis-normalised held-out MSE
+    (each axis's per-group MSE divided by that axis's best mean, averaged over the axes)."""
+    orders = sorted(set.intersection(*(set(c) for c in cv)))
+    best = [min(_group_means(e, groups).mean() for e in c.values()) for c in cv]
+    return _one_se({k: np.mean([_group_means(c[k], groups) / b for c, b in zip(cv, best)], axis=0) for k in orders})
 
 
 def fit_thermal_poly(temperature_c, values, sigma=None, direction=None, groups=None, t_ref_c: float = 25.0,
                      max_order: int = MAX_ORDER, order: int | None = None, quantity: str = "",
-                     hysteresis: str = "auto") -> PolyFit:
+                     hysteresis: str = "auto", per_axis: bool = True) -> PolyFit:
     """Fit per-axis polynomials in ``(T - t_ref_c)`` with a cross-validated order.
 
-    The three axes share one order, chosen by the one-standard-error rule on the
-    axis-normalised held-out error (pooling the axes makes the choice far steadier than
-    three separate choices); the held-out RMS of every order is reported per axis, with and
-    without the hysteresis term. The direction term is kept on an axis when it lowers that
+    Each axis has its own order (``per_axis``), the lowest whose held-out (leave one
+    temperature out) mean squared error is within one standard error of that axis's best;
+    with ``per_axis=False`` the three axes share one order, chosen by the same rule on the
+    axis-normalised error (steadier with many temperatures, but one axis's need for a high
+    order is then imposed on the others). The held-out RMS of every order is reported per
+    axis, with and without the hysteresis term. The direction term is kept on an axis when it lowers that
     axis's held-out RMS ("auto"), always ("on") or never ("off").
 
     Parameters
@@ -338,26 +350,28 @@ def fit_thermal_poly(temperature_c, values, sigma=None, direction=None, groups=N
         cv_sel.append(sel)
     feasible = [k for k in candidates if all(k in c for c in cv_sel)]
     if order is not None:
-        k_sel = order
-    elif feasible:
-        k_sel = _select_order([{k: c[k] for k in feasible} for c in cv_sel], groups)
+        axis_order = dict.fromkeys(axes, order)
+    elif per_axis:
+        axis_order = {ax: _select_order(sel, groups) if sel else top for ax, sel in zip(axes, cv_sel)}
     else:
-        k_sel = top
-    K = k_sel + 1
+        common = _select_common_order([{k: c[k] for k in feasible} for c in cv_sel], groups) if feasible else top
+        axis_order = dict.fromkeys(axes, common)
+    K = max(axis_order.values()) + 1
     coeffs = np.zeros((3, K))
     coeffs_sigma = np.full((3, K), np.nan)
     orders = np.zeros(3, int)
     h, h_sigma, cv_chosen = np.full(3, np.nan), np.full(3, np.nan), np.full(3, np.nan)
     h_used = np.zeros(3, bool)
-    scale = _DT_SCALE ** -np.arange(K)
     for ax in axes:
+        k_sel = axis_order[ax]
+        scale = _DT_SCALE ** -np.arange(k_sel + 1)
         if both:  # hysteresis is always reported, from the chosen order with the direction term
             p, cov = _wls(_design(dt, k_sel, s_all), y[:, ax], weights[ax])
             h[ax], h_sigma[ax] = p[-1], np.sqrt(cov[-1, -1])
             h_used[ax] = hysteresis == "on" or (hysteresis == "auto" and cv_rms_h[k_sel, ax] < cv_rms[k_sel, ax])
         p, cov = _wls(_design(dt, k_sel, s_all if h_used[ax] else None), y[:, ax], weights[ax])
-        coeffs[ax] = p[:K] * scale
-        coeffs_sigma[ax] = np.sqrt(np.diag(cov)[:K]) * scale
+        coeffs[ax, :k_sel + 1] = p[:k_sel + 1] * scale
+        coeffs_sigma[ax, :k_sel + 1] = np.sqrt(np.diag(cov)[:k_sel + 1]) * scale
         orders[ax] = k_sel
         cv_chosen[ax] = (cv_rms_h if h_used[ax] else cv_rms)[k_sel, ax]
         if np.isfinite(cv_chosen[ax]):
@@ -686,7 +700,7 @@ class ThermalResult:
 
 def fit_soaks(points: dict[str, list[SoakPoint]], t_ref_c: float = 25.0, max_order: int = MAX_ORDER,
               order: int | None = None, hysteresis: str = "auto",
-              include_unsettled: bool = False) -> dict[str, PolyFit]:
+              include_unsettled: bool = False, per_axis: bool = True) -> dict[str, PolyFit]:
     """Polynomial fits of bias and (where observed) scale factor over the settled soak points.
 
     Weights are ``1 / sigma^2`` with each soak's sigma floored at the axis median.
@@ -713,7 +727,7 @@ def fit_soaks(points: dict[str, list[SoakPoint]], t_ref_c: float = 25.0, max_ord
             # any below the axis median to it, so no soak dominates the fit by a lucky sigma
             sig = np.maximum(sig, np.nanmedian(sig, axis=0))
             fits[f"{triad}.{what}"] = fit_thermal_poly(tc, vals, sig, d, grp, t_ref_c, max_order, order,
-                                                       f"{triad}.{what}", hysteresis)
+                                                       f"{triad}.{what}", hysteresis, per_axis)
     return fits
 
 
@@ -756,7 +770,8 @@ def analyze_thermal(session, triads=("gyro", "accel"), t_ref_c: float = 25.0, ma
                     settle_window_s: float = 120.0, ramp_window_s: float = 60.0, reference=None,
                     position_sigma: float | str = 0.0,
                     bias_instability: Mapping[str, np.ndarray | None] | None = None,
-                    bias_rrw: Mapping[str, np.ndarray | None] | None = None) -> ThermalResult:
+                    bias_rrw: Mapping[str, np.ndarray | None] | None = None,
+                    order_per_axis: bool = True) -> ThermalResult:
     """Thermal analysis of a session with soak steps (preferred) or ramp steps.
 
     ``position_sigma`` (rad): the fixture's 1-sigma repeatability, for the per-soak fits;
@@ -764,6 +779,7 @@ def analyze_thermal(session, triads=("gyro", "accel"), t_ref_c: float = 25.0, ma
     ``bias_rrw``: triad -> bias random walk K (SI), for the sigma of the bias at t_ref
     (:func:`with_bias_random_walk`).
     ``reference`` maps triad name -> TriadModel for the ramp fit's known-input term (optional).
+    ``order_per_axis``: each axis its own cross-validated order (see :func:`fit_thermal_poly`).
     """
     warnings: list[str] = []
     points: dict[str, list[SoakPoint]] = {}
@@ -775,7 +791,7 @@ def analyze_thermal(session, triads=("gyro", "accel"), t_ref_c: float = 25.0, ma
         points, w = soak_points(session, triads, settle_tol_c_per_min, settle_window_s, position_sigma,
                                 bias_instability)
         warnings += w
-        fits = fit_soaks(points, t_ref_c, max_order, order, hysteresis)
+        fits = fit_soaks(points, t_ref_c, max_order, order, hysteresis, per_axis=order_per_axis)
         for triad, k in (bias_rrw or {}).items():
             settled = [p for p in points.get(triad, []) if p.settled]
             if f"{triad}.bias" in fits:
@@ -794,7 +810,7 @@ def analyze_thermal(session, triads=("gyro", "accel"), t_ref_c: float = 25.0, ma
             grp = np.clip(np.digitize(rs.temperature_c, edges[1:-1]), 0, 7)
             fits[f"{triad}.bias"] = with_bias_random_walk(
                 fit_thermal_poly(rs.temperature_c, rs.bias, rs.bias_sigma, rs.direction, grp, t_ref_c, max_order,
-                                 order, f"{triad}.bias", hysteresis),
+                                 order, f"{triad}.bias", hysteresis, order_per_axis),
                 rs.temperature_c, rs.elapsed_s, (bias_rrw or {}).get(triad))
         temps = [t for rs in ramps.values() for t in rs.temperature_c]
         source = "ramp"

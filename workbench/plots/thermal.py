@@ -19,17 +19,16 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from workbench.analysis.thermal import PolyFit, ThermalResult  # noqa: E402
-from workbench.units import label, to_unit  # noqa: E402
+from workbench.units import fit_unit, label, to_unit  # noqa: E402
 
 BRANCH_COLOURS = {1: "tab:red", -1: "tab:blue", 0: "tab:grey"}
 BRANCH_NAMES = {1: "up (warming)", -1: "down (cooling)", 0: "no direction"}
 
 
 def display_unit(quantity: str) -> str:
-    """Lab unit of a fitted quantity (``gyro.bias`` -> deg/s, ``accel.bias`` -> mg, ``*.scale`` -> ppm)."""
-    if quantity.endswith("scale"):
-        return "ppm"
-    return "deg/s" if quantity.startswith("gyro") else "mg"
+    """Lab unit of a fitted quantity from ``workbench.units`` (``gyro.bias`` -> deg/h, ``accel.bias`` -> mg,
+    ``*.scale`` -> ppm)."""
+    return fit_unit(quantity)
 
 
 def quantity_figure(fit: PolyFit):
@@ -90,7 +89,8 @@ def order_figure(fit: PolyFit):
         if np.isfinite(fit.cv_rms_hysteresis[:, ax_i]).any():
             ax.semilogy(orders, to_unit(fit.cv_rms_hysteresis[:, ax_i], unit), "s--", color=line.get_color(),
                         ms=3, label=f"{'xyz'[ax_i]} + hysteresis term")
-    ax.axvline(fit.order, color="k", ls=":", label=f"chosen order {fit.order}")
+        ax.axvline(fit.orders[ax_i] + 0.04 * (ax_i - 1), color=line.get_color(), ls=":",
+                   label=f"{'xyz'[ax_i]}: chosen order {fit.orders[ax_i]}")
     ax.set_xlabel("polynomial order")
     ax.set_ylabel(f"held-out RMS ({label(unit)})")
     ax.set_title(f"{fit.quantity}: cross-validation")
