@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from workbench.calset import CalibrationSet, atomic_write_text
+from workbench.result import SummaryLines
 from workbench.session import Session
 
 
@@ -36,20 +37,41 @@ def lab_option(procedure: str, options: Mapping, key: str, unit: str) -> np.ndar
 
 @dataclass
 class ProcedureResult:
-    """What an analysis returns.
+    """What an analysis returns; satisfies :class:`workbench.result.CoefficientResult`.
 
     ``result`` is the JSON-ready dict written to ``result.json`` (SI unless a key names its
     unit, e.g. ``azimuth_deg``); ``calibration`` the partial calibration set this procedure
     produces (None when its product is not a calibration set); ``payload`` the estimator
-    result objects the figures are drawn from; ``summary`` lines for people, in lab units.
+    result objects the figures are drawn from; ``summary`` lines for people, in lab units
+    (a :class:`~workbench.result.SummaryLines`: ``r.summary`` and ``r.summary()`` agree);
+    ``options`` the analysis options used (set by :func:`run_analysis`, JSON-ready, lab units
+    as declared).
     """
 
     procedure: str
     result: dict = field(default_factory=dict)
     calibration: CalibrationSet | None = None
     payload: Any = None
-    summary: list[str] = field(default_factory=list)
+    summary: SummaryLines = field(default_factory=SummaryLines)
     warnings: list[str] = field(default_factory=list)
+    options: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.summary, SummaryLines):
+            self.summary = SummaryLines(self.summary)
+
+    def to_dict(self) -> dict:
+        """The ``result.json`` document (see :func:`result_json`)."""
+        return json.loads(result_json(self))
+
+    def to_calibration(self, unit=None) -> CalibrationSet | None:
+        """The calibration set (None when the product is not one); ``unit`` must match its unit if given."""
+        from workbench.errors import ProcedureError
+
+        cal = self.calibration
+        if cal is not None and unit is not None and (unit.serial, unit.model) != (cal.unit.serial, cal.unit.model):
+            raise ProcedureError(f"{self.procedure}: the calibration is of unit {cal.unit.serial}, not {unit.serial}")
+        return cal
 
 
 def session_provenance(session: Session) -> dict:
@@ -86,11 +108,18 @@ def _json_default(obj):
 
 
 def result_json(result: ProcedureResult) -> str:
-    """``result.json`` text: procedure, result dict, warnings, calibration id."""
+    """``result.json`` text: procedure, result dict, summary lines, warnings, the analysis options used,
+    the software version and the calibration id, so that anything downstream (dashboard, certificate)
+    shows the stored result without analysing again."""
+    from workbench import __version__
+
     doc: Mapping = {
         "procedure": result.procedure,
         **result.result,
+        "summary": list(result.summary),
         "warnings": list(result.warnings),
+        "options": dict(result.options),
+        "software": {"workbench": __version__},
         "calibration_id": result.calibration.id if result.calibration is not None else None,
     }
     return json.dumps(doc, indent=2, default=_json_default) + "\n"
@@ -126,6 +155,7 @@ def run_analysis(proc, session: Session, options: Mapping | None = None, out_dir
     analysis leaves both untouched.
     """
     result = with_session_provenance(proc.analyze(session, **dict(options or {})), session)
+    result = replace(result, options=used_options(proc, options))
     if out_dir is not None:
         figs = proc.figures(result) if hasattr(proc, "figures") else None
         write_outputs(result, Path(out_dir), figs)
@@ -135,6 +165,18 @@ def run_analysis(proc, session: Session, options: Mapping | None = None, out_dir
         store.add_result(result.procedure, session.id, session.unit.serial, json.loads(result_json(result)),
                          result.calibration)
     return result
+
+
+def used_options(proc, options: Mapping | None) -> dict:
+    """The analysis options of an analysis, defaults filled in, JSON-ready (a calibration set by its id)."""
+    from workbench.options import validate
+
+    given = dict(options or {})
+    cal = given.pop("calibration", None)
+    used = dict(validate(proc, given, "analysis"))
+    if cal is not None:
+        used["calibration"] = getattr(cal, "id", str(cal))
+    return used
 
 
 def procedure_options(name: str, options: Mapping, defaults: Mapping, keys: tuple[str, ...] | None = None) -> dict:
