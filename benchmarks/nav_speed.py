@@ -26,7 +26,7 @@ from workbench.grades import load_spec  # noqa: E402
 from workbench.nav import ahrs, zupt  # noqa: E402
 from workbench.nav.compensate import compensate, imu_samples, process_noise  # noqa: E402
 from workbench.sequence import Hold, Sequence  # noqa: E402
-from workbench.sim import simulate  # noqa: E402
+from workbench.jobs import simulate  # noqa: E402
 
 
 def timed(label: str, fn):

@@ -29,7 +29,7 @@ import procedures.redundant as redundant
 from workbench.analysis import northfinding as nfm
 from workbench.analysis import northfinding_theory as th
 from workbench.grades import load_spec
-from workbench.sim import simulate
+from workbench.jobs import simulate
 
 TOTAL_S = 4800.0  # s, 40 pairs x 2 x 60 s
 

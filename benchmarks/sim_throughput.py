@@ -3,7 +3,7 @@
 Prints, per grade, the wall time to simulate one hour at the grade's rate in one call and in
 60 s chunks (as the runner records step by step), and the throughput in samples/s (one
 sample = one time instant of all the unit's channels). The target of issue 3 is one hour of
-a 6-axis IMU at 100 Hz in under 2 s. Then the whole rig (``workbench.sim.simulate``: table
+a 6-axis IMU at 100 Hz in under 2 s. Then the whole rig (``workbench.jobs.simulate``: table
 motion, chamber, truth, sensor, step records) for a six-position tumble of one hour in total,
 in memory, in samples/s, beside the sensor model's own CPU time for as many samples (the
 target of issue 23: ``simulate()`` at 1 kHz within 1.5x of the sensor model).
@@ -73,7 +73,7 @@ def main() -> None:
     from dataclasses import replace
 
     from workbench.sequence import Hold, Sequence
-    from workbench.sim import simulate
+    from workbench.jobs import simulate
 
     print(f"\n{'whole rig (simulate)':24s} {'Hz':>6s} {'samples':>9s} {'wall s':>8s} {'cpu s':>8s} "
           f"{'samples/s (cpu)':>16s} {'sensor cpu s':>13s} {'rig/sensor':>10s}")

@@ -38,7 +38,7 @@ import procedures.rate as rate
 from workbench import units
 from workbench.errors import WorkbenchError
 from workbench.grades import grade_names, load_spec
-from workbench.sim import simulate
+from workbench.jobs import simulate
 
 MG = 9.80665e-3
 DEG_H = np.radians(1.0) / 3600.0

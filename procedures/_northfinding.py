@@ -53,6 +53,21 @@ def settle_option(settle_s: float = 2.0) -> Option:
                   "the value the sequence recorded)", unit="s", ge=0)
 
 
+def grade_spec(session: Session, grade: str | None):
+    """The grade ``grade`` (name or fixture path), else the unit's model if it names a grade, else None."""
+    from workbench.errors import WorkbenchError
+    from workbench.grades import load_spec
+
+    if grade:
+        return load_spec(grade)
+    if session.unit.model:
+        try:
+            return load_spec(session.unit.model)
+        except (WorkbenchError, OSError):
+            return None
+    return None
+
+
 def analyze(name: str, method: str, declared, session: Session, options: dict) -> ProcedureResult:
     """A north-finding procedure's ``analyze``: :func:`find_north` + :func:`to_result` -> ProcedureResult.
 
@@ -68,6 +83,7 @@ def analyze(name: str, method: str, declared, session: Session, options: dict) -
             float(session.options.get("discard_s", o["discard_s"]))
     if "bias" in kwargs:
         kwargs["bias"] = np.asarray(kwargs["bias"], float)
+    kwargs["grade"] = grade_spec(session, kwargs.get("grade"))
     nf = find_north(session, method, **kwargs)
     result, summary = to_result(nf)
     return ProcedureResult(name, result, None, nf, summary, list(nf.warnings))

@@ -47,7 +47,8 @@ from workbench.errors import AnalysisError, ProcedureError
 from workbench.nav import ahrs
 from workbench.nav.compensate import check_calibration, compensate, imu_samples, process_noise
 from workbench.nav.strapdown import attitude_errors
-from workbench.nav.truth import declination, mount_segments, reference_gyro_bias, table_truth
+from workbench.nav.truth import mount_segments, reference_gyro_bias, table_truth
+from workbench.rigsites import declination
 from workbench.options import Option, check_options, defaults
 from workbench.procedure import ProcedureResult
 from workbench.sequence import Hold, Index, Rotate, Sequence, mount_from_euler

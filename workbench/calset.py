@@ -14,8 +14,6 @@ from __future__ import annotations
 import copy
 import hashlib
 import json
-import os
-import tempfile
 import uuid
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
@@ -29,7 +27,9 @@ import numpy as np
 
 from workbench import __version__
 from workbench.errors import CalibrationFormatError
+from workbench.files import atomic_write_text, file_sha256  # noqa: F401  (re-exported: older imports)
 from workbench.model import ThermalModel, TriadModel
+from workbench.values import Unit
 
 FORMAT = "workbench-calibration/1"
 FORMAT_FAMILY = "workbench-calibration/"
@@ -47,14 +47,6 @@ def schema() -> dict:
     """The JSON Schema of the calibration-set format (a dict)."""
     text = resources.files("workbench").joinpath("schema/calibration.schema.json").read_text()
     return json.loads(text)
-
-
-@dataclass(frozen=True)
-class Unit:
-    """The device under test."""
-
-    serial: str
-    model: str = ""
 
 
 @dataclass(frozen=True)
@@ -352,22 +344,6 @@ def validate(data: Mapping, source: str = "<dict>") -> None:
         raise CalibrationFormatError(f"{source}: {where}: {err.message[:200]}")
 
 
-def atomic_write_text(path: Path, text: str) -> Path:
-    """Write ``text`` to ``path`` through a temp file in the same folder and an atomic rename."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
-
-
 def _merge_array(old: np.ndarray, old_sig: np.ndarray, new: np.ndarray, new_sig: np.ndarray):
     """Element-wise: the better-determined estimate (smaller finite sigma; the newer on a tie or
     when neither is observed)."""
@@ -436,12 +412,3 @@ def merge(*sets: CalibrationSet) -> CalibrationSet:
     model = next((s.unit.model for s in reversed(sets) if s.unit.model), "")
     return CalibrationSet(unit=Unit(sets[0].unit.serial, model), triads=triads, noise=noise,
                           provenance=prov, notes=notes)
-
-
-def file_sha256(path: str | Path) -> str:
-    """SHA-256 hex digest of a file's bytes (streamed)."""
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()

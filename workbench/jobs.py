@@ -1,7 +1,8 @@
 """Jobs: record a procedure's sequence on a rig and analyse it; the campaign of all procedures.
 
 These are the orchestration the command line, the dashboard and batch runs share:
-:func:`open_rig` (simulated or real), :func:`record_procedure`, :func:`resume_procedure` and
+:func:`simulate` (a sequence on the simulated rig, the one-call entry point for tests and
+demos), :func:`open_rig` (simulated or real), :func:`record_procedure`, :func:`resume_procedure` and
 :func:`run_campaign`, which runs every procedure that applies to the unit in campaign order
 and merges their calibration sets into one.
 """
@@ -11,7 +12,7 @@ from __future__ import annotations
 import inspect
 import json
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from types import ModuleType
 
@@ -42,6 +43,36 @@ def open_rig(cfg: RigConfig, truth, seed: int, state=None):
     except ImportError:
         raise WorkbenchError(f"rig {cfg.name}: driver {cfg.driver!r} is not available in this version") from None
     return open_real_rig(cfg, truth, seed, state)
+
+
+def simulate(sequence, unit, seed: int, out_dir: str | Path | None = None, rig=None, site=None,
+             procedure: str | None = None, progress=None):
+    """Record ``sequence`` on the simulated rig; returns ``(Session, UnitTruth)``.
+
+    ``unit``: a grade name or fixture path, a ``SensorSpec`` or a ``UnitTruth`` (drawn from the
+    spec with ``seed`` when not already a truth). ``rig``: a ``RigConfig``, a rig-config name or
+    path, or None for ``fixtures/rigs/sim.yaml``. ``site``: a ``workbench.session.Site`` that
+    replaces the rig's site. ``out_dir``: a folder for the session (with ``truth.json``), or None
+    to keep it in memory. The same ``seed`` gives the same samples.
+    """
+    from workbench.grades import SensorSpec, UnitTruth, draw_unit, load_spec
+    from workbench.sim import write_truth
+    from workbench.sim.rig import SimRig
+
+    if isinstance(unit, UnitTruth):
+        truth = unit
+    else:
+        spec = unit if isinstance(unit, SensorSpec) else load_spec(unit)
+        truth = draw_unit(spec, seed)
+    cfg = rig if isinstance(rig, RigConfig) else load_rig_config(rig or "sim")
+    if site is not None:
+        cfg = replace(cfg, site=site)
+    sim = SimRig(cfg, truth, seed)
+    rec = start(sequence, sim, Unit(truth.serial, truth.model), procedure or sequence.name,
+                Path(out_dir) if out_dir is not None else None, extra={"seed": int(seed)})
+    if out_dir is not None:
+        write_truth(Path(out_dir), truth, cfg, seed)
+    return record(rec, sim, progress), truth
 
 
 def applies(proc: ModuleType, spec) -> bool:

@@ -153,7 +153,7 @@ def record(recording: Recording, rig, progress: Progress | None = None) -> Sessi
 
 def rig_state_for_resume(recording: Recording):
     """The saved rig state of an interrupted recording (for the simulated rig)."""
-    from workbench.sim.rig import RigState
+    from workbench.motion import RigState
 
     state = recording.manifest.get("rig_state")
     return None if state is None else RigState(**state)

@@ -22,9 +22,10 @@ import numpy as np
 import pandas as pd
 from scipy.spatial.transform import Rotation
 
-from workbench.calset import Unit, atomic_write_text, file_sha256
 from workbench.earth import normal_gravity, rz
 from workbench.errors import SessionError
+from workbench.files import atomic_write_text, file_sha256
+from workbench.values import Unit
 
 FORMAT = "workbench-session/1"
 STEP_KINDS = ("static", "rate", "index", "carousel", "soak", "ramp", "drive")

@@ -16,7 +16,7 @@ PROC = procedure("allan")
 
 def _simulated():
     """Grade, duration, temperature and seed; records in memory and analyses."""
-    from workbench.sim import simulate
+    from workbench.jobs import simulate
 
     left, right = st.columns(2)
     with left:

@@ -8,7 +8,7 @@ import yaml
 from workbench import registry
 from workbench.analysis.allan import deviation
 from workbench.cli import main
-from workbench.sim import simulate
+from workbench.jobs import simulate
 
 
 @pytest.fixture(scope="module")

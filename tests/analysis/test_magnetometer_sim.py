@@ -19,7 +19,7 @@ from workbench.analysis.mag_heading import evaluate_heading
 from workbench.grades import load_spec
 from workbench.procedure import result_json
 from workbench.rigconfig import load_rig_config, magnetic_field_ned
-from workbench.sim import simulate
+from workbench.jobs import simulate
 
 SPEC = load_spec("consumer_9axis")
 RIG = replace(load_rig_config("sim"), magnetic_field_ned=magnetic_field_ned(48.0, 60.0, 2.0))

@@ -311,7 +311,7 @@ def test_wrong_latitude_shows_in_the_earth_rate_amplitude():
 def test_maytagging_procedure_through_the_simulator():
     import procedures.maytagging as may
     from workbench.procedure import result_json
-    from workbench.sim import simulate
+    from workbench.jobs import simulate
 
     seq = may.sequence(CVG, count=6, ordering="ABBA", start_offset_deg=90.0)
     session, truth = simulate(seq, CVG, seed=11)
@@ -332,7 +332,7 @@ def test_maytagging_procedure_through_the_simulator():
 def test_carousel_and_earth_rate_procedures_through_the_simulator():
     import procedures.carousel as car
     import procedures.earth_rate as er
-    from workbench.sim import simulate
+    from workbench.jobs import simulate
 
     s, _ = simulate(car.sequence(CVG, rate_deg_s=30.0, laps=3), CVG, seed=4)
     res = car.analyze(s)
@@ -346,7 +346,7 @@ def test_carousel_and_earth_rate_procedures_through_the_simulator():
 
 def test_redundant_procedure_through_the_simulator():
     import procedures.redundant as red
-    from workbench.sim import simulate
+    from workbench.jobs import simulate
 
     s, _ = simulate(red.sequence(CVG, dwell_s=10.0, turns=2), CVG, seed=6)
     res = red.analyze(s)

@@ -112,7 +112,7 @@ def test_settling_time_of_a_first_order_lag():
 @pytest.fixture(scope="module")
 def small_soak_session():
     from procedures import thermal as proc
-    from workbench.sim import simulate
+    from workbench.jobs import simulate
 
     truth = replace(draw_unit(SPEC, 5), sample_rate_hz=10.0, thermal_time_constant_s=30.0)
     seq = proc.sequence(SPEC, t_min_c=-10.0, t_max_c=50.0, step_c=15.0, dwell_s=5.0)
@@ -142,7 +142,7 @@ def test_unsettled_soak_is_named_and_left_out(small_soak_session):
 
 def test_ramp_too_fast_for_the_thermal_lag_is_named():
     from procedures import thermal as proc
-    from workbench.sim import simulate
+    from workbench.jobs import simulate
 
     # unit time constant 600 s; a 5 °C/min ramp over 20 °C lasts 4 min: the unit moves ~6 °C
     truth = replace(draw_unit(SPEC, 6), sample_rate_hz=5.0, thermal_time_constant_s=600.0)
@@ -154,7 +154,7 @@ def test_ramp_too_fast_for_the_thermal_lag_is_named():
 
 def test_ramp_fit_carries_the_random_walk_at_the_time_it_passed_t_ref():
     from procedures import thermal as proc
-    from workbench.sim import simulate
+    from workbench.jobs import simulate
 
     truth = replace(draw_unit(SPEC, 6), sample_rate_hz=5.0, thermal_time_constant_s=60.0)
     seq = proc.sequence(SPEC, profile="ramp", t_min_c=20.0, t_max_c=40.0, ramp_c_per_min=1.0)

@@ -15,7 +15,7 @@ import pytest
 from procedures import thermal as proc
 from workbench.grades import Hysteresis, draw_unit, load_spec
 from workbench.registry import exporter
-from workbench.sim import simulate
+from workbench.jobs import simulate
 
 DEG = np.pi / 180
 MG = 9.80665e-3

@@ -23,7 +23,7 @@ import procedures.multiposition as multiposition
 from workbench import units
 from workbench.errors import ProcedureError
 from workbench.grades import load_spec
-from workbench.sim import simulate
+from workbench.jobs import simulate
 
 OFF = ~np.eye(3, dtype=bool)
 

@@ -15,7 +15,7 @@ import procedures.multiposition as multiposition
 import procedures.rate as rate
 from workbench.grades import load_spec
 from workbench.model import TriadModel
-from workbench.sim import simulate
+from workbench.jobs import simulate
 
 MG = 9.80665e-3  # m/s^2
 DEG_H = np.radians(1.0) / 3600.0  # rad/s

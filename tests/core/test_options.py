@@ -104,3 +104,23 @@ def test_run_passes_analysis_options_to_the_analysis(db, tmp_path, capsys):
     result = json.loads((out / "result.json").read_text())
     assert "not modelled" in result["gyro"]["notes"]["earth_rate"]
     assert json.loads((out / "session" / "session.json").read_text())["analysis_options"] == {"earth_rate": "ignore"}
+
+
+def test_result_protocol_and_stored_result(tmp_path):
+    """ProcedureResult satisfies the result protocol; result.json holds summary, options used and version."""
+    import workbench
+    from workbench.grades import load_spec
+    from workbench.procedure import run_analysis
+    from workbench.result import AnalysisResult, CoefficientResult
+    from workbench.jobs import simulate
+
+    spec = load_spec("industrial_mems")
+    session, _ = simulate(multiposition.sequence(spec, dwell_s=2.0), spec, seed=3)
+    res = run_analysis(multiposition, session, {"earth_rate": "ignore"}, tmp_path)
+    assert isinstance(res, AnalysisResult) and isinstance(res, CoefficientResult)
+    assert res.summary() == list(res.summary) and res.summary and res.to_calibration(session.unit) is res.calibration
+    doc = json.loads((tmp_path / "result.json").read_text())
+    assert doc == res.to_dict()
+    assert doc["summary"] == list(res.summary) and doc["software"] == {"workbench": workbench.__version__}
+    assert doc["options"] == {o.name: o.default for o in multiposition.OPTIONS if o.stage == "analysis"} | {
+        "earth_rate": "ignore"}

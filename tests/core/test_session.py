@@ -8,7 +8,7 @@ import pytest
 from workbench.errors import SessionError
 from workbench.sequence import Hold, Sequence
 from workbench.session import load_session
-from workbench.sim import simulate
+from workbench.jobs import simulate
 
 
 @pytest.fixture(scope="module")

@@ -21,7 +21,7 @@ from workbench.grades import draw_unit, load_spec
 from workbench.registry import procedure
 from workbench.sequence import Hold, Sequence
 from workbench.session import load_session
-from workbench.sim import simulate
+from workbench.jobs import simulate
 
 
 @pytest.fixture(scope="module")

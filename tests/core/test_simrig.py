@@ -6,7 +6,7 @@ import pytest
 from workbench.earth import earth_rate_ned, normal_gravity
 from workbench.rigconfig import load_rig_config
 from workbench.sequence import Carousel, Hold, Index, Ramp, Rotate, Sequence, Soak
-from workbench.sim import simulate
+from workbench.jobs import simulate
 
 
 @pytest.fixture(scope="module")

@@ -14,7 +14,7 @@ PAGE = Path(__file__).resolve().parents[2] / "dashboard" / "pages" / "60_thermal
 def test_thermal_page_shows_models_and_exports(seeded_db, tmp_path):
     from procedures import thermal as proc
     from workbench.grades import draw_unit, load_spec
-    from workbench.sim import simulate
+    from workbench.jobs import simulate
 
     spec = load_spec("industrial_mems")
     truth = replace(draw_unit(spec, 5), sample_rate_hz=5.0, thermal_time_constant_s=30.0)

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from workbench.drivers.hil import HilLab, free_port
+from workbench.sim.hil import HilLab, free_port
 from workbench.drivers.turntable_visa import GPIB_BACKENDS
 from workbench.rigconfig import RIGS_DIR, load_rig_config
 

@@ -6,7 +6,7 @@ import pytest
 
 from tests.drivers.conftest import hil_yaml
 from workbench.drivers.chamber_modbus import ModbusChamber
-from workbench.drivers.hil import free_port
+from workbench.sim.hil import free_port
 from workbench.errors import RigError
 
 REGISTERS = {"temperature": {"address": 100, "kind": "input", "scale": 0.1},

@@ -20,7 +20,7 @@ from workbench.calset import Unit
 from workbench.drivers.rig import open_real_rig
 from workbench.grades import draw_unit, load_spec
 from workbench.runner import record, start
-from workbench.sim import simulate
+from workbench.jobs import simulate
 
 DWELL_S = 5.0
 K = 10  # simulated-rig runs giving the noise reference

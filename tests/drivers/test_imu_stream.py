@@ -8,7 +8,7 @@ import threading
 import numpy as np
 import pytest
 
-from workbench.drivers.hil import free_port
+from workbench.sim.hil import free_port
 from workbench.drivers.imu_stream import FrameFormat, ImuStream, xor8
 from workbench.errors import RigError
 

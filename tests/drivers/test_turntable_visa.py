@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from tests.drivers.conftest import GPIB_BACKEND, hil_yaml
-from workbench.drivers.hil import free_port
+from workbench.sim.hil import free_port
 from workbench.drivers.turntable_visa import VisaTurntable
 from workbench.errors import RigError
 

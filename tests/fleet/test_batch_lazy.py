@@ -7,7 +7,7 @@ import workbench.session as wsession
 from workbench import registry
 from workbench.fleet.batch import analyze_one
 from workbench.session import load_session
-from workbench.sim import simulate
+from workbench.jobs import simulate
 
 
 @pytest.fixture(scope="module")

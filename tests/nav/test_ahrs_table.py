@@ -13,7 +13,7 @@ from workbench.calset import CalibrationSet
 from workbench.errors import AnalysisError, ProcedureError
 from workbench.grades import load_spec
 from workbench.procedure import result_json
-from workbench.sim import simulate
+from workbench.jobs import simulate
 
 SHORT = {"mounts": [[10.0, -5.0]], "rotate_s": 40.0, "dwell_s": 10.0}
 

@@ -12,10 +12,11 @@ from workbench.earth import gravity_ned
 from workbench.errors import AnalysisError, SessionError
 from workbench.grades import load_spec
 from workbench.nav.compensate import compensate, imu_samples
-from workbench.nav.truth import declination, mount_segments, reference_gyro_bias, table_truth
+from workbench.nav.truth import mount_segments, reference_gyro_bias, table_truth
+from workbench.rigsites import declination
 from workbench.sequence import Hold, Rotate, Sequence
 from workbench.session import Site
-from workbench.sim import simulate
+from workbench.jobs import simulate
 
 
 @pytest.fixture(scope="module")

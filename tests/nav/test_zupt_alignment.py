@@ -16,7 +16,7 @@ from workbench.grades import load_spec
 from workbench.nav.strapdown import coarse_level, euler_rph
 from workbench.nav.truth import table_truth
 from workbench.procedure import result_json
-from workbench.sim import simulate
+from workbench.jobs import simulate
 
 POSITIONS = [["z-down", 0.0], ["y-down", 45.0]]
 

@@ -17,7 +17,7 @@ import pytest
 import procedures.ferraris as ferraris
 from workbench.grades import load_spec
 from workbench.importer import import_file
-from workbench.sim import simulate
+from workbench.jobs import simulate
 
 DATA = Path("/work/shared/data/imucal_ferraris")
 PROFILE = Path(__file__).parents[2] / "fixtures" / "import_profiles" / "imucal_ferraris.yaml"

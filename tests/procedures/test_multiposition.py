@@ -12,7 +12,7 @@ from workbench.errors import ProcedureError
 from workbench.grades import load_spec
 from workbench.registry import campaign_procedures
 from workbench.sequence import mount_matrix
-from workbench.sim import simulate
+from workbench.jobs import simulate
 
 
 @pytest.fixture(scope="module")

@@ -7,7 +7,7 @@ import pytest
 
 import procedures.rate as rate
 from workbench.grades import load_spec
-from workbench.sim import simulate
+from workbench.jobs import simulate
 
 
 @pytest.fixture(scope="module")

@@ -24,7 +24,7 @@ Public: :class:`Observations`, :class:`AxisGeometry`, :class:`HarmonicFit`,
 :class:`MaytagResult`, :class:`RedundantResult`, :func:`maytag_azimuth`,
 :func:`maytag_azimuth_one_axis`, :func:`fit_harmonic`, :func:`maytag`, :func:`redundant`,
 :func:`group_fits`, :func:`static_observations`, :func:`rotating_observations`,
-:func:`find_north`, :class:`NorthFinding`, :func:`to_result`, :func:`analyze_procedure`,
+:func:`find_north`, :class:`NorthFinding`, :func:`to_result`,
 :func:`earth_rate_free_series`, :func:`sequence_table`, :func:`pairing_table`,
 :func:`circular_mean`, :func:`angle_diff`, :func:`repeatability`.
 
@@ -36,6 +36,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -43,6 +44,9 @@ from workbench.analysis.northfinding_theory import check_latitude
 from workbench.earth import EARTH_RATE
 from workbench.errors import AnalysisError
 from workbench.session import Session
+
+if TYPE_CHECKING:
+    from workbench.grades import SensorSpec
 
 STATIC_RATE_TOL = 1e-9  # rad/s: |table_rate| below this counts as static
 
@@ -609,23 +613,6 @@ class NoiseTerms:
         return cls(nz.white, nz.bias_instability, nz.rrw, nz.quantization, f"grade {spec.name}")
 
 
-def _grade_spec(session: Session, grade):
-    """The grade ``grade`` (name, path or SensorSpec), else the unit's model if it names a grade, else None."""
-    from workbench.errors import WorkbenchError
-    from workbench.grades import SensorSpec, load_spec
-
-    if isinstance(grade, SensorSpec):
-        return grade
-    if grade:
-        return load_spec(grade)
-    if session.unit.model:
-        try:
-            return load_spec(session.unit.model)
-        except (WorkbenchError, OSError):
-            return None
-    return None
-
-
 @dataclass(frozen=True)
 class NorthFinding:
     """North-finding result of one session (all SI; see :func:`find_north`).
@@ -750,7 +737,7 @@ def _theory(method: str, nf_parts: dict, noise: NoiseTerms | None, series_fn, se
 
 
 def find_north(session: Session, method: str, settle_s: float = 2.0, drift: bool | None = None,
-               index_tol_deg: float = 0.05, max_tilt_deg: float = 1.0, grade=None,
+               index_tol_deg: float = 0.05, max_tilt_deg: float = 1.0, grade: SensorSpec | None = None,
                bias: np.ndarray | None = None, positions_per_turn: int | None = None,
                bin_deg: float = 5.0, axes: Sequence[int] | None = None, discard_s: float = 0.0) -> NorthFinding:
     """Find north from a session with ``method`` in :data:`METHODS`.
@@ -764,8 +751,9 @@ def find_north(session: Session, method: str, settle_s: float = 2.0, drift: bool
 
     ``settle_s`` s dropped at the start of each step; ``drift`` fits a linear bias drift
     (default: off for maytagging, on otherwise); ``max_tilt_deg``: body x must be level and
-    other axes level or vertical within it; ``grade``: noise terms for the theoretical
-    figures (default: the unit's model if it names a grade, else the session's own ADEV);
+    other axes level or vertical within it; ``grade``: the grade (a
+    :class:`~workbench.grades.SensorSpec`, given by the caller: an analysis reads no fixture)
+    whose noise terms give the theoretical figures (default: the session's own ADEV);
     ``axes``: the gyro's sensing axes (default: the grade's ``sensing_axes``, else all three);
     ``discard_s``: steps that start less than this after the session's first sample are left
     out (warm-up: thesis table 4.2, sequences 8-11 "extracted one hour after the starting").
@@ -780,7 +768,7 @@ def find_north(session: Session, method: str, settle_s: float = 2.0, drift: bool
     lat = session.site.latitude
     check_latitude(lat, f"{session.name}: site.latitude_deg")
     max_tilt = np.radians(max_tilt_deg)
-    spec = _grade_spec(session, grade)
+    spec = grade
     drift = (method != "maytagging") if drift is None else bool(drift)
     where = f"{session.name}: {method}"
     if method == "carousel":
@@ -926,35 +914,6 @@ def to_result(nf: NorthFinding) -> tuple[dict, list[str]]:
     if nf.ambiguous:
         summary.append("one level axis (eq. 4.3): the azimuth may be mirrored (psi or -psi about the pair's home)")
     return res, summary
-
-
-ANALYSIS_OPTIONS = ("settle_s", "drift", "index_tol_deg", "max_tilt_deg", "grade", "bias", "positions_per_turn",
-                    "bin_deg", "axes")
-
-
-def analyze_procedure(name: str, method: str, session: Session, defaults: dict, options: dict):
-    """A north-finding procedure's ``analyze``: :func:`find_north` + :func:`to_result` -> ProcedureResult.
-
-    ``options`` may hold the analysis options (:data:`ANALYSIS_OPTIONS`) and the procedure's
-    sequence options (keys of ``defaults``, ignored here); anything else raises ProcedureError
-    naming the option. ``settle_s`` defaults to the session's recorded option, else ``defaults``.
-    The product is a result, not a calibration set (``calibration`` None).
-    """
-    from workbench.errors import ProcedureError
-    from workbench.procedure import ProcedureResult
-
-    unknown = sorted(set(options) - set(ANALYSIS_OPTIONS) - set(defaults) - {"calibration"})
-    if unknown:
-        raise ProcedureError(f"{name}: unknown option(s) {', '.join(unknown)} "
-                             f"(analysis options: {', '.join(ANALYSIS_OPTIONS)})")
-    kwargs = {k: options[k] for k in ANALYSIS_OPTIONS if k in options and options[k] is not None}
-    if "settle_s" not in kwargs:  # the settling the sequence was planned with, else the procedure's default
-        kwargs["settle_s"] = float(session.options.get("settle_s", defaults.get("settle_s", 2.0)))
-    if "bias" in kwargs:
-        kwargs["bias"] = np.asarray(kwargs["bias"], float)
-    nf = find_north(session, method, **kwargs)
-    result, summary = to_result(nf)
-    return ProcedureResult(name, result, None, nf, summary, list(nf.warnings))
 
 
 def sequence_table(results: Sequence[NorthFinding], labels: Sequence[str] | None = None) -> list[dict]:

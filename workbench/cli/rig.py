@@ -42,7 +42,7 @@ def hil(config: Path = typer.Argument(..., help="Rig configuration on 127.0.0.1 
         seconds: float = typer.Option(None, "--seconds", help="Stop after this many wall-clock seconds "
                                                               "(default: run until Ctrl-C).")) -> None:
     """Serve the table, chamber and IMU stream of CONFIG on 127.0.0.1 from the simulated lab."""
-    from workbench.drivers.hil import HilLab
+    from workbench.sim.hil import HilLab
     from workbench.rigconfig import load_rig_config
 
     cfg = load_rig_config(config)

@@ -33,11 +33,12 @@ import pandas as pd
 
 from workbench.drivers.imu_stream import Block, ImuStream
 from workbench.drivers.turntable_visa import DEFAULT_POSITIONING_RATE, VisaTurntable
+from workbench.angles import wrap_pi
 from workbench.errors import RigError, RigLimitError, WorkbenchError
+from workbench.motion import RigState
 from workbench.rigconfig import RigConfig, check_plan
 from workbench.sequence import PlannedStep, mount_label
 from workbench.session import StepRecord
-from workbench.sim.rig import RigState, wrap_pi
 
 log = logging.getLogger("workbench.rig")
 DRIVERS = ("sim", "real")

@@ -7,20 +7,19 @@ the elapsed time); its angular rate is the Earth rate plus the table rate about 
 Samples between steps (``step = -1``: remounting, moving) belong to the next step's mount.
 
 Public: :class:`TableTruth`, :func:`table_truth`, :func:`reference_gyro_bias`,
-:func:`mount_segments`, :func:`declination`.
+:func:`mount_segments`. (The site's declination from the rig configurations is
+:func:`workbench.rigsites.declination`: this module reads no fixture file.)
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
-import yaml
 from scipy.spatial.transform import Rotation
 
 from workbench.earth import earth_rate_ned, rz
-from workbench.errors import AnalysisError, SessionError
+from workbench.errors import SessionError
 from workbench.session import Session
 
 
@@ -107,21 +106,3 @@ def mount_segments(session: Session) -> list[np.ndarray]:
             cuts.append(int(i))
     cuts.append(len(rows))
     return [rows[a:b] for a, b in zip(cuts, cuts[1:]) if b > a]
-
-
-def declination(session: Session, override_deg: float | None = None) -> float:
-    """Magnetic declination (rad, east of true north) of the session's site.
-
-    ``override_deg`` if given; else the rig configuration named in the session
-    (``fixtures/rigs/*.yaml`` whose ``name`` matches ``session.rig``); else AnalysisError.
-    """
-    if override_deg is not None:
-        return float(np.radians(override_deg))
-    from workbench.rigconfig import RIGS_DIR
-
-    for path in sorted(Path(RIGS_DIR).glob("*.yaml")):
-        data = yaml.safe_load(path.read_text()) or {}
-        if session.rig is not None and data.get("name", data.get("driver")) == session.rig:
-            return float(np.radians((data.get("magnetic_field") or {}).get("declination_deg", 0.0)))
-    raise AnalysisError(f"{session.name}: magnetic declination unknown (rig {session.rig!r} has no configuration): "
-                        "pass declination_deg")

@@ -38,11 +38,12 @@ from dataclasses import replace
 
 import numpy as np
 
+from workbench.angles import wrap_pi
 from workbench.drivers.imu_stream import SIGNALS, FrameFormat
 from workbench.drivers.turntable_visa import DEFAULT_COMMANDS, DEFAULT_POSITIONING_RATE
 from workbench.errors import RigError
 from workbench.rigconfig import RigConfig
-from workbench.sim.rig import SimRig, move_profile, ramp_profile, wrap_pi
+from workbench.sim.rig import SimRig, move_profile, ramp_profile
 
 HOST = "127.0.0.1"
 log = logging.getLogger("workbench.hil")

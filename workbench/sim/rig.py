@@ -13,40 +13,21 @@ session does not know, as on a real table.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import pandas as pd
 from scipy.signal import lfilter
 from scipy.spatial.transform import Rotation
 
+from workbench.angles import wrap_pi
 from workbench.earth import earth_rate_ned, normal_gravity
 from workbench.errors import RigError
+from workbench.motion import RigState
 from workbench.rigconfig import RigConfig, check_plan
 from workbench.sequence import PlannedStep
 from workbench.session import StepRecord
 
 _SOAK_CHUNK_S = 60.0
 _STEADY_BLOCK = 64  # rows rotated at once for a steady segment (the matrix product is row-wise exact)
-
-
-@dataclass
-class RigState:
-    """Where the rig is between steps (saved in the session for ``--resume``)."""
-
-    sample: int = 0  # index of the next sample (t = sample / fs)
-    table_angle: float = 0.0  # rad, wrapped to [0, 2 pi)
-    table_rate: float = 0.0  # rad/s
-    mount: list | None = None
-    air_c: float = 23.0
-    unit_c: float = 23.0
-    chamber_target_c: float = 23.0
-    chamber_rate_c_per_min: float = 5.0
-    imu: dict | None = None  # VirtualIMU noise state, so a resumed run continues the same noise
-    rng: dict | None = None  # fixture-error generator state
-
-    def to_dict(self) -> dict:
-        return dict(self.__dict__)
 
 
 class SimRig:
@@ -127,7 +108,7 @@ class SimRig:
                             dict(planned.extra))
         return samples, record
 
-    # -- hook for the hardware-in-the-loop simulator (workbench/drivers/hil.py) -----------
+    # -- hook for the hardware-in-the-loop simulator (workbench/sim/hil.py) -----------
     def advance(self, rate_profile: np.ndarray, new_fixture_error: bool = False) -> pd.DataFrame:
         """Simulate ``len(rate_profile)`` samples at the current mount (step label -1).
 
@@ -155,7 +136,7 @@ class SimRig:
         target_rate = planned.table_rate if planned.kind in ("rate", "carousel") else 0.0
         moving_angle = planned.kind in ("static", "soak", "ramp", "index")
         if moving_angle:
-            delta = _wrap_pi(planned.table_angle - st.table_angle)
+            delta = wrap_pi(planned.table_angle - st.table_angle)
             if abs(delta) > 1e-9:
                 profiles.append(_move(delta, min(tt.max_rate, np.radians(60.0)), tt.max_accel, self.fs))
         if target_rate != 0.0 and st.table_rate != target_rate:
@@ -282,10 +263,5 @@ def _move(delta: float, max_rate: float, accel: float, fs: float) -> np.ndarray:
     return np.sign(delta) * prof * abs(delta) / area
 
 
-def _wrap_pi(a: float) -> float:
-    return float((a + np.pi) % (2 * np.pi) - np.pi)
-
-
 move_profile = _move  # public names for the real-rig drivers and the hardware-in-the-loop simulator
 ramp_profile = _ramp_rate
-wrap_pi = _wrap_pi
