@@ -29,7 +29,7 @@ import numpy as np
 import procedures.ferraris as ferraris
 from workbench import units
 from workbench.grades import load_spec
-from workbench.sim import simulate
+from workbench.jobs import simulate
 
 GRADES = ("industrial_mems", "quasi_tactical", "tactical_low_noise", "navigation_grade")
 LABELS = {"x_p": "x-up", "x_a": "x-down", "y_p": "y-up", "y_a": "y-down", "z_p": "z-up", "z_a": "z-down"}

@@ -41,8 +41,9 @@ RULES = [
      "the virtual lab is a rig: the runner drives it, not the reverse"),
     ("workbench.plots", ("workbench.jobs", "workbench.cli", "workbench.runner", "workbench.drivers", "workbench.sim",
                          "workbench.store", "procedures", "dashboard"), "figures are drawn from result objects"),
+    # (a procedure may use the virtual lab's models, e.g. a simulated vehicle drive; never the runner)
     ("procedures", ("workbench.cli", "workbench.jobs", "workbench.store", "workbench.runner", "workbench.drivers",
-                    "workbench.sim", "dashboard"), "procedures are adapters between analyses and jobs"),
+                    "dashboard"), "procedures are adapters between analyses and jobs"),
 ]
 
 

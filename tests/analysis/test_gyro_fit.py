@@ -28,7 +28,7 @@ from workbench.analysis.gyro_fit import turn_earth_rate
 from workbench.analysis.turntable import fit_accel, fit_gyro_static
 from workbench.earth import EARTH_RATE
 from workbench.grades import load_spec
-from workbench.sim import simulate
+from workbench.jobs import simulate
 
 NAV = load_spec("navigation_grade")
 NONLIN = float(NAV.gyro.nonlinearity[0] / units.factor("ppm/(deg/s)"))  # ppm/(°/s), the grade's 1-sigma

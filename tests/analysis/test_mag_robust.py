@@ -21,7 +21,7 @@ import procedures.magnetometer as proc
 from workbench.analysis.mag_attitude import fit_attitude
 from workbench.analysis.mag_fit import heavy_tails
 from workbench.analysis.magnetometer import MagPoints, calibrate
-from workbench.sim import simulate
+from workbench.jobs import simulate
 
 from tests.analysis.test_magnetometer_sim import RIG, SPEC, grid_heading_rms_deg
 

@@ -372,7 +372,7 @@ def test_discard_s_warm_up_is_held_and_left_out():
     import procedures.maytagging as may
     import procedures.redundant as red
     from workbench.errors import AnalysisError
-    from workbench.sim import simulate
+    from workbench.jobs import simulate
 
     seq = may.sequence(CVG, count=2, dwell_s=20.0, discard_s=45.0)
     s, _ = simulate(seq, CVG, seed=12)

@@ -17,7 +17,7 @@ import procedures.ferraris as ferraris
 from workbench import units
 from workbench.errors import ProcedureError
 from workbench.grades import load_spec
-from workbench.sim import simulate
+from workbench.jobs import simulate
 
 
 def _bias_truth(model, session) -> np.ndarray:
