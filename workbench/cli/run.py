@@ -54,8 +54,9 @@ def _progress_bar():
                     TextColumn("{task.fields[step]}"), TimeRemainingColumn(), console=err, transient=False)
 
 
-def _tracker(bar: Progress, name: str):
-    task = bar.add_task(name, total=None, step="")
+def _tracker(bar: Progress, name: str, total: int | None = None):
+    """A progress callback for one recording; ``total`` steps shown from the start (known from the sequence)."""
+    task = bar.add_task(name, total=total, step="")
 
     def progress(i: int, n: int, rec) -> None:
         bar.update(task, total=n, completed=i + 1, step=f"{rec.kind} {rec.label}".strip())
@@ -97,7 +98,8 @@ def _print_result(result: ProcedureResult, out_dir: Path | None) -> None:
     for w in result.warnings:
         out.print(f"[yellow]warning:[/] {w}", highlight=False)
     if out_dir is not None:
-        out.print(f"results in {out_dir} (result.json{', calibration.json' if result.calibration else ''}, figures/)")
+        out.print(f"results in {out_dir} (result.json{', calibration.json' if result.calibration else ''}, figures/)",
+                  soft_wrap=True)  # a path is never broken across lines
 
 
 def _load_calibration(ref: str | None):
@@ -148,7 +150,7 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
     if procedure_name == "campaign":
         campaign_options = _campaign_options(parse_options(option))
         out_dir = out_dir or _default_out("campaign", truth.serial)
-        out.print(f"campaign for {truth.serial} ({spec.name}) on {cfg.name}, seed {seed} -> {out_dir}")
+        out.print(f"campaign for {truth.serial} ({spec.name}) on {cfg.name}, seed {seed} -> {out_dir}", soft_wrap=True)
         if dry_run:
             from workbench.jobs import applies
             from workbench.registry import campaign_procedures
@@ -159,14 +161,17 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
                     _print_sequence(seq)
                     check_plan(seq.expand(), cfg)
             return
+        totals = _step_totals(spec, campaign_options)
         with _progress_bar() as bar:
-            res = run_campaign(spec, truth, cfg, seed, out_dir, store, lambda name: _tracker(bar, name),
-                               options=campaign_options)
+            res = run_campaign(spec, truth, cfg, seed, out_dir, store,
+                               lambda name: _tracker(bar, name, totals.get(name)), options=campaign_options)
         for name, r in res.results.items():
             out.print(f"[bold]{name}[/]")
             _print_result(r, out_dir / name)
-        out.print(f"[bold green]calibration set[/] {res.calibration.id} -> {out_dir / 'calibration.json'}")
-        out.print(f"figures under {out_dir}/*/figures; store: {store.url if store else 'not used (--no-store)'}")
+        out.print(f"[bold green]calibration set[/] {res.calibration.id} -> {out_dir / 'calibration.json'}",
+                  soft_wrap=True)
+        out.print(f"figures under {out_dir}/*/figures; store: {store.url if store else 'not used (--no-store)'}",
+                  soft_wrap=True)
         return
     proc = procedure(procedure_name)
     # a number-valued option must be a number (one that also takes a word, e.g. 'auto', is checked below)
@@ -186,8 +191,19 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
     if cal is None and _needs_cal(proc):
         cal = _calibrate_first(spec, truth, cfg, seed, out_dir)
     with _interruptible(out_dir / "session", proc.NAME), _progress_bar() as bar:
-        session = record_procedure(proc, spec, truth, cfg, seed, out_dir / "session", options, _tracker(bar, proc.NAME))
+        session = record_procedure(proc, spec, truth, cfg, seed, out_dir / "session", options,
+                                   _tracker(bar, proc.NAME, len(seq.expand())))
     _analyse_and_report(proc, session, out_dir, store, cal, analysis_options)
+
+
+def _step_totals(spec, campaign_options: dict[str, dict]) -> dict[str, int]:
+    """Steps each campaign procedure will record, from its sequence, so a progress bar shows its total at once."""
+    from workbench.jobs import applies
+    from workbench.options import split
+    from workbench.registry import campaign_procedures
+
+    return {p.NAME: len(p.sequence(spec, **split(p, campaign_options.get(p.NAME))[0]).expand())
+            for p in campaign_procedures(set(spec.triads)) if applies(p, spec)}
 
 
 def _campaign_options(options: dict) -> dict[str, dict]:
