@@ -139,7 +139,12 @@ def analyze(session: Session, calibration: CalibrationSet | None = None, **optio
                                  "sigma_e": res.sigma[:, 1], **blocks[mode].pop("_series")}
     if gps is not None:
         payload["gps"] = gps[["t", "lat", "lon"]].to_dict("list")
-    result = {**blocks, "calibration_id": calibration.id, "states": int(o["states"]),
+    from procedures.lns_dead_reckoning import _thin
+
+    series = {m: {"t": _thin(r["t"]), "sigma_m": _thin(np.hypot(r["sigma_n"], r["sigma_e"])),
+                  **({"t_ref": _thin(r["t_ref"]), "error_m": _thin(r["error_m"])} if "error_m" in r else {})}
+              for m, r in payload["runs"].items()}
+    result = {**blocks, "series": series, "calibration_id": calibration.id, "states": int(o["states"]),
               "gain_scaling": {"on": bool(o["gain_scaling"]), "c0": o["c0"], "c1": o["c1"]}}
     if gps is None:
         warnings.append("no GPS fixes in the session: no reference, errors not measured")

@@ -193,7 +193,7 @@ def analyze(session: Session, calibration: CalibrationSet | None = None, **optio
             payload["runs"][f"{mode}/{variant}"] = {"t": res.t[::10], "lat": res.lat[::10], "lon": res.lon[::10],
                                                     "odo_scale": res.odo_scale, "t_all": res.t,
                                                     "heading": res.heading, **{k: v for k, v in series.items()}}
-    result = {**blocks, "gps_loss_s": t_loss, "skip_distance_m": float(o["skip_distance_m"]),
+    result = {**blocks, "series": _series(payload), "gps_loss_s": t_loss, "skip_distance_m": float(o["skip_distance_m"]),
               "calibration_id": calibration.id, "wrong_gyro_bias_deg_h": float(o["wrong_gyro_bias_deg_h"]),
               "seed_tables": {"table_2_8_no_sf_state_pct": {"max": 5.5, "mean": 4.0, "std": 0.9, "rms": 4.2,
                                                             "one_sigma": 4.9},
@@ -201,6 +201,31 @@ def analyze(session: Session, calibration: CalibrationSet | None = None, **optio
                                                          "one_sigma": 0.9},
                               "fig_2_18_sf_estimate": 0.035}}
     return ProcedureResult(NAME, result, None, payload, _summary(blocks), warnings)
+
+
+def _thin(x, n: int = 300) -> list:
+    """At most ``n`` evenly spaced values of ``x`` (for the stored result the dashboard draws from)."""
+    x = np.asarray(x, float)
+    idx = np.unique(np.linspace(0, len(x) - 1, min(n, len(x))).astype(int)) if len(x) else np.zeros(0, int)
+    return [None if not np.isfinite(v) else float(v) for v in x[idx]]
+
+
+def _series(payload: dict) -> dict:
+    """Thinned series stored in result.json: error % vs distance per run, SF estimate vs time,
+    the calibrated 5-state track and the GPS track (lat, lon in degrees)."""
+    out = {"error_pct": {}, "odo_scale": {}}
+    for name, r in payload["runs"].items():
+        d = np.asarray(r["distance_m"])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            pct = np.where(d > 0, 100 * np.asarray(r["error_m"]) / d, np.nan)
+        out["error_pct"][name] = {"distance_m": _thin(d), "pct": _thin(pct)}
+        if name.endswith("/sf_state"):
+            out["odo_scale"][name] = {"t": _thin(r["t_all"]), "value": _thin(r["odo_scale"])}
+    track = payload["runs"]["calibrated/sf_state"]
+    out["track"] = {"lat_deg": _thin(np.degrees(track["lat"]), 500), "lon_deg": _thin(np.degrees(track["lon"]), 500)}
+    gps = payload["gps"]
+    out["gps"] = {"lat_deg": _thin(np.degrees(gps["lat"]), 500), "lon_deg": _thin(np.degrees(gps["lon"]), 500)}
+    return out
 
 
 def _summary(blocks: dict) -> list[str]:

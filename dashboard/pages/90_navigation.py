@@ -68,3 +68,7 @@ with tab_runs:
     else:
         pick = st.selectbox("Run", [r.name for r in runs], key="nav.runpick")
         common.show_result(next(r for r in runs if r.name == pick))
+
+from dashboard.land_navigation import land_navigation_section  # noqa: E402
+
+land_navigation_section()

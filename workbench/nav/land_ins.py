@@ -111,48 +111,61 @@ class LandInsConfig:
     states: int = 20
 
 
-def error_dynamics(c_bn: np.ndarray, f_n: np.ndarray, v_n: np.ndarray, lat: float, h: float,
+def _skew_n(v: np.ndarray) -> np.ndarray:
+    """Cross-product matrices (..., 3, 3) of vectors (..., 3)."""
+    k = np.zeros(v.shape[:-1] + (3, 3))
+    k[..., 0, 1], k[..., 0, 2], k[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
+    k[..., 1, 0], k[..., 2, 0], k[..., 2, 1] = v[..., 2], -v[..., 1], v[..., 0]
+    return k
+
+
+def error_dynamics(c_bn: np.ndarray, f_n: np.ndarray, v_n: np.ndarray, lat, h,
                    grade: GradeErrors, cfg: LandInsConfig) -> tuple[np.ndarray, np.ndarray]:
-    """Continuous ``F`` (20, 20) and ``G Q Gᵀ`` (20, 20) at one point of the trajectory (module docstring)."""
+    """Continuous ``F`` and ``G Q Gᵀ`` (…, 20, 20) at points of the trajectory (module docstring).
+
+    ``c_bn`` (…, 3, 3), ``f_n``, ``v_n`` (…, 3), ``lat`` rad and ``h`` m (…): one point or a batch.
+    """
+    lat, h = np.asarray(lat, float), np.asarray(h, float)
+    shape = lat.shape
     rm, rn = radii(lat)
-    r = np.sqrt(rm * rn)
-    g = float(normal_gravity(lat, h))
-    w_ie = EARTH_RATE * np.array([np.cos(lat), 0.0, -np.sin(lat)])
-    w_en = np.array([v_n[1] / (rn + h), -v_n[0] / (rm + h), -v_n[1] * np.tan(lat) / (rn + h)])
-    F = np.zeros((N_STATES, N_STATES))
-    F[P_, V_] = np.eye(3)
-    F[V_, A_] = -skew(f_n)
-    F[V_, BA] = c_bn
-    F[V_, V_] = -skew(2 * w_ie + w_en)
-    F[V_, P_] = np.diag([0.0, 0.0, 2 * g / r])  # gravity falls with height; Schuler via ∂ω_en/∂v
-    F[A_, A_] = -skew(w_ie + w_en)
-    dwen_dv = np.array([[0.0, 1 / (rn + h), 0.0], [-1 / (rm + h), 0.0, 0.0], [0.0, -np.tan(lat) / (rn + h), 0.0]])
-    F[A_, V_] = -dwen_dv
-    dwie_dr = np.zeros((3, 3))
-    dwie_dr[:, 0] = EARTH_RATE * np.array([-np.sin(lat), 0.0, -np.cos(lat)]) / (rm + h)
-    F[A_, P_] = -dwie_dr
-    F[A_, BG] = c_bn
+    g = normal_gravity(lat, h)
+    zero = np.zeros(shape)
+    w_ie = EARTH_RATE * np.stack([np.cos(lat), zero, -np.sin(lat)], -1)
+    w_en = np.stack([v_n[..., 1] / (rn + h), -v_n[..., 0] / (rm + h), -v_n[..., 1] * np.tan(lat) / (rn + h)], -1)
+    F = np.zeros(shape + (N_STATES, N_STATES))
+    F[..., P_, V_] = np.eye(3)
+    F[..., V_, A_] = -_skew_n(f_n)
+    F[..., V_, BA] = c_bn
+    F[..., V_, V_] = -_skew_n(2 * w_ie + w_en)
+    F[..., 5, 2] = 2 * g / np.sqrt(rm * rn)  # gravity falls with height; the Schuler loop is via ∂ω_en/∂v
+    F[..., A_, A_] = -_skew_n(w_ie + w_en)
+    F[..., 6, 4] = -1 / (rn + h)  # -∂ω_en/∂v
+    F[..., 7, 3] = 1 / (rm + h)
+    F[..., 8, 4] = np.tan(lat) / (rn + h)
+    F[..., 6, 0] = EARTH_RATE * np.sin(lat) / (rm + h)  # -∂ω_ie/∂r_N
+    F[..., 8, 0] = EARTH_RATE * np.cos(lat) / (rm + h)
+    F[..., A_, BG] = c_bn
     qd = np.zeros(N_STATES)
-    G = np.zeros((N_STATES, N_STATES))
-    G[V_, V_] = c_bn
-    G[A_, A_] = c_bn
     qd[V_] = grade.accel_white ** 2
     qd[A_] = grade.gyro_white ** 2
-    G[BA, BA] = G[BG, BG] = np.eye(3)
     qd[BA] = grade.accel_bias_rw ** 2
     qd[BG] = grade.gyro_bias_rw ** 2
-    G[BW, BW] = np.eye(2)
-    G[LA, LA] = np.eye(3)
     qd[BW] = cfg.boresight_rw ** 2
     qd[LA] = cfg.lever_rw ** 2
-    return F, (G * qd) @ G.T
+    gqg = np.zeros(shape + (N_STATES, N_STATES))
+    gqg[..., V_, V_] = (c_bn * qd[V_]) @ np.swapaxes(c_bn, -1, -2)  # C diag(q) Cᵀ
+    gqg[..., A_, A_] = (c_bn * qd[A_]) @ np.swapaxes(c_bn, -1, -2)
+    idx = np.arange(9, N_STATES)
+    gqg[..., idx, idx] = qd[9:]
+    return F, gqg
 
 
 def discretise(F: np.ndarray, gqg: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """Second-order transition ``Φ = I + F dt + (F dt)²/2`` and ``Q_k = (Φ GQGᵀ Φᵀ + GQGᵀ) dt / 2`` (eq. 11)."""
+    """Second-order transition ``Φ = I + F dt + (F dt)²/2`` and ``Q_k = (Φ GQGᵀ Φᵀ + GQGᵀ) dt / 2`` (eq. 11);
+    one (20, 20) pair or a batch (…, 20, 20)."""
     fd = F * dt
-    phi = np.eye(len(F)) + fd + 0.5 * fd @ fd
-    return phi, 0.5 * (phi @ gqg @ phi.T + gqg) * dt
+    phi = np.eye(F.shape[-1]) + fd + 0.5 * fd @ fd
+    return phi, 0.5 * (phi @ gqg @ np.swapaxes(phi, -1, -2) + gqg) * dt
 
 
 def nhc_jacobian(c_bn: np.ndarray, c_bp: np.ndarray, v_n: np.ndarray, w_nb_b: np.ndarray,
@@ -217,11 +230,11 @@ def covariance_analysis(trajectory, grade: GradeErrors, cfg: LandInsConfig = Lan
     zr = np.zeros(3)
     eye3 = np.eye(3)
     r_zarupt = (grade.gyro_white / np.sqrt(cfg.zarupt_window_s) + cfg.zarupt_sigma_floor) ** 2
+    F_all, gqg_all = error_dynamics(tr.c_bn[idx], f_n[idx], tr.v_ned[idx], tr.lat[idx], tr.h[idx], grade, cfg)
+    phi_all, q_all = discretise(F_all, gqg_all, dt)
     for j, i in enumerate(idx):
         if j > 0:
-            F, gqg = error_dynamics(tr.c_bn[i], f_n[i], tr.v_ned[i], tr.lat[i], tr.h[i], grade, cfg)
-            phi, q = discretise(F, gqg, dt)
-            P = phi @ P @ phi.T + q
+            P = phi_all[j] @ P @ phi_all[j].T + q_all[j]
         if still[i]:
             H = np.zeros((6, N_STATES))
             H[:3, V_] = eye3
