@@ -1,13 +1,22 @@
 """ZUPT fine alignment on the table: validate a calibration set the way a land navigator uses it.
 
 Sequence: the unit static on the table at each of ``positions`` (``[mount, table angle °]``,
-like thesis Fig. 3.3-3.4), ``dwell_s`` each.
+like thesis Fig. 3.3-3.4), ``dwell_s`` each. With ``turns`` > 0 each position is followed by
+that many table turns of ``turn_deg`` (90° by default), each followed by a hold of ``dwell_s``:
+paper 001's pre-calibration profile on a turntable (sec. 4: stop after every 90° heading change
+until the initial azimuth is reached), which makes the heading observable.
 
 Analysis (``workbench analyze zupt-alignment SESSION --calibration SET``): for every position,
 the thesis' ZUPT alignment (:func:`workbench.nav.zupt.align`, thesis sec. 3.3) runs twice, on
 the raw samples and on the samples compensated with the set (:func:`workbench.nav.compensate`),
-the process noise from the set's noise block in both runs. The heading is given from outside,
-as in the thesis: the table's (``table_zero_azimuth_deg`` overrides the site's, e.g. with a
+the process noise from the set's noise block in both runs. With turns, one alignment runs
+through the position's hold and its turns: zero-velocity (and ZARUPT at the holds) updates,
+the mechanisation following the turns (:func:`workbench.nav.zupt.align` with ``still``).
+``heading_source``: ``external`` (default), or ``gyrocompass`` (no external heading: the
+initial heading from the Earth rate; needs a ``level_s`` long enough to gyrocompass);
+``attitude_hold`` holds all three angles at the frozen solution (thesis eq. 3.57) instead of the
+heading only (positions without turns). The external heading, as in the thesis: the table's
+(``table_zero_azimuth_deg`` overrides the site's, e.g. with a
 north-finding result; ``heading_sigma_deg`` is its 1-sigma). The table is the truth: attitude
 errors against ``Session.attitude``, gyro-bias errors against the bias measured on the table
 (mean output minus the known Earth rate over the last ``bias_reference_s`` of the position: the
@@ -20,7 +29,9 @@ bias wanders, so the filter's final estimate is compared with its recent value),
 velocity), ``convergence_time_s`` (worst; null = never: the time after which the free mechanisation
 drifts no more than 5x the white sensor noise over each correction interval, the thesis'
 "indicates itself to be at rest and non-rotating"), ``gyro_bias_error`` (rad/s per axis, of
-the position with the largest error) and ``positions`` (per position details).
+the position with the largest error) and ``positions`` (per position details, with ``turns``
+and ``initial_heading_error_deg``: the heading the alignment started from, gyrocompass or
+external, minus the table's); ``heading_source``.
 """
 
 from __future__ import annotations
@@ -36,7 +47,7 @@ from workbench.nav.strapdown import attitude_errors, euler_rph
 from workbench.nav.truth import reference_gyro_bias, table_truth
 from workbench.options import Option, check_options, defaults
 from workbench.procedure import ProcedureResult
-from workbench.sequence import Hold, Sequence, mount_matrix
+from workbench.sequence import Hold, Index, Sequence, mount_matrix
 from workbench.session import Session
 
 NAME = "zupt-alignment"
@@ -49,7 +60,14 @@ OPTIONS = (
     Option("dwell_s", "sequence", "float", 180.0, "hold per position", unit="s", gt=0),
     Option("level_s", "analysis", "float", 5.0, "coarse levelling before the EKF", unit="s", gt=0),
     Option("update_interval_s", "analysis", "float", 1.0, "ZUPT correction interval", unit="s", gt=0),
+    Option("turns", "sequence", "int", 0, "table turns after each position's hold (each then held dwell_s)",
+           ge=0),
+    Option("turn_deg", "sequence", "float", 90.0, "angle of each turn", unit="deg"),
     Option("zarupt", "analysis", "bool", False, "add the zero angular rate update"),
+    Option("heading_source", "analysis", "str", "external", "external: the table's heading; gyrocompass: none "
+           "given, from the Earth rate", choices=("external", "gyrocompass")),
+    Option("attitude_hold", "analysis", "bool", False, "hold roll, pitch and heading (thesis eq. 3.57), not the "
+           "heading only"),
     Option("gain_scaling", "analysis", "bool", True, "thesis gain scaling of the EKF"),
     Option("heading_sigma_deg", "analysis", "float", 0.1, "1-sigma of the heading given from outside", unit="deg",
            gt=0),
@@ -75,6 +93,8 @@ def sequence(spec, **options) -> Sequence:
         mount_matrix(mount)  # raises on an unknown mount
         steps.append(Hold(mount=mount, table_angle=float(np.radians(angle_deg)), dwell_s=float(o["dwell_s"]),
                           label=f"{mount} {float(angle_deg):g}°"))
+        steps += [Index(float(np.radians(o["turn_deg"])), float(o["dwell_s"]),
+                        label=f"{mount} {float(angle_deg):g}° + {(k + 1) * o['turn_deg']:g}°") for k in range(o["turns"])]
     return Sequence(NAME, steps, dict(o))
 
 
@@ -92,19 +112,32 @@ def _priors(cal: CalibrationSet, noise_triad: str, calibrated: bool, raw_prior: 
     return np.where(np.isfinite(prior) & (prior > 0), prior, raw_prior)
 
 
-def _position(session: Session, step, samples, noise, cfg: zupt.ZuptConfig, az, ref_s: float) -> dict:
-    """Run the alignment on one static step and compare it with the table."""
-    rows = np.nonzero(session.samples["step"].to_numpy() == step.index)[0]
+def _position(session: Session, group: list, samples, noise, cfg: zupt.ZuptConfig, az, ref_s: float) -> dict:
+    """Run the alignment on one position (its static step and the turns after it) and compare it with the table."""
+    labels = session.samples["step"].to_numpy()
+    step = group[0]
+    inside = np.nonzero(np.isin(labels, [g.index for g in group]))[0]
+    rows = np.arange(inside[0], inside[-1] + 1)  # with the transitions between the turns
     truth = table_truth(session, rows, az)
     true_rph = euler_rph(truth.attitude[0])
-    res = zupt.align(samples, noise, session.site.latitude, float(true_rph[2]), session.site.height_m, cfg)
-    k0 = max(int(round(cfg.level_s / samples.dt)), len(rows) - int(round(ref_s / samples.dt)))
-    ref, ref_sig = reference_gyro_bias(samples.gyro[k0:], table_truth(session, rows[k0:], az), session.site.latitude)
-    err = np.degrees(attitude_errors(res.attitude, truth.attitude[0]))
+    df = session.samples
+    still = (np.abs(df["table_rate"].to_numpy()[rows]) < 1e-9 if "table_rate" in df.columns
+             else np.isin(labels[rows], [g.index for g in group if g.kind == "static"]))
+    res = zupt.align(samples, noise, session.site.latitude, float(true_rph[2]), session.site.height_m, cfg,
+                     still=still if len(group) > 1 else None)
+    last = np.nonzero(labels[rows] == group[-1].index)[0]
+    k0 = max(int(round(cfg.level_s / samples.dt)) if len(group) == 1 else 0,
+             len(last) - int(round(ref_s / samples.dt)))
+    sel = last[k0:][still[last[k0:]]]
+    ref, ref_sig = reference_gyro_bias(samples.gyro[sel], table_truth(session, rows[sel], az), session.site.latitude)
+    at_epochs = truth.attitude[np.minimum(np.searchsorted(samples.t, res.t), len(rows) - 1)]
+    err = np.degrees(attitude_errors(res.attitude, at_epochs))
     i60 = min(len(res.t) - 1, int(np.searchsorted(res.t - res.t_start, 60.0)))
     conv = res.convergence_time()
     return {
         "label": step.label, "step": step.index, "true_rph_deg": np.degrees(true_rph).tolist(),
+        "turns": sum(g.kind == "index" for g in group), "initial_heading_error_deg": _num(np.degrees(
+            (true_rph[2] - res.initial_rph[2] + np.pi) % (2 * np.pi) - np.pi)),
         "roll_error_deg": _num(err[-1, 0]), "pitch_error_deg": _num(err[-1, 1]),
         "heading_error_deg": _num(err[-1, 2]),
         "roll_error_60s_deg": _num(err[i60, 0]), "pitch_error_60s_deg": _num(err[i60, 1]),
@@ -116,6 +149,20 @@ def _position(session: Session, step, samples, noise, cfg: zupt.ZuptConfig, az, 
         "gyro_bias_error": (res.gyro_bias[-1] - ref).tolist(),
         "accel_bias": res.accel_bias[-1].tolist(), "accel_bias_sigma": res.accel_bias_sigma[-1].tolist(),
     }, res, err
+
+
+def _groups(session: Session) -> list[list]:
+    """Positions: each static step with the turns that follow it (an index step and the hold it plans after it)."""
+    groups, prev = [], None
+    for st in session.steps:
+        if st.kind == "index" and groups:
+            groups[-1].append(st)
+        elif st.kind == "static" and prev is not None and prev.kind == "index" and groups:
+            groups[-1].append(st)
+        elif st.kind == "static":
+            groups.append([st])
+        prev = st
+    return groups
 
 
 def _num(x: float) -> float | None:
@@ -148,33 +195,47 @@ def analyze(session: Session, calibration: CalibrationSet | None = None, **optio
     steps = session.steps_of_kind("static")
     if not steps:
         raise AnalysisError(f"{session.name}: no static step to align on")
+    groups = _groups(session)
+    turning = any(len(g) > 1 for g in groups)
     first = imu_samples(session.step_samples(steps[0].index), session.sample_rate_hz,
                         f"{session.name}: step {steps[0].index}")
     noise = process_noise(calibration, fallback=first)
     warnings += list(noise.notes)
     az = None if o["table_zero_azimuth_deg"] is None else float(np.radians(o["table_zero_azimuth_deg"]))
-    measurements = ("position", "velocity", "heading") + (("zarupt",) if o["zarupt"] else ())
-    blocks, payload = {}, {"t": [], "labels": [s.label or f"step {s.index}" for s in steps]}
+    held = () if (turning or o["heading_source"] == "gyrocompass") else \
+        (("attitude",) if o["attitude_hold"] else ("heading",))
+    if o["attitude_hold"] and not held:
+        raise AnalysisError(f"{NAME}: attitude_hold needs positions without turns and an external heading")
+    measurements = ("position", "velocity", *held) + (("zarupt",) if o["zarupt"] else ())
+    blocks, payload = {}, {"t": [], "labels": [g[0].label or f"step {g[0].index}" for g in groups]}
     for mode in ("raw", "calibrated"):
         cfg = zupt.ZuptConfig(
             level_s=float(o["level_s"]), update_interval_s=float(o["update_interval_s"]), measurements=measurements,
             gain_scaling=bool(o["gain_scaling"]), heading_sigma=float(np.radians(o["heading_sigma_deg"])),
+            heading_source=o["heading_source"],
             gyro_bias_prior=tuple(_priors(calibration, "gyro", mode == "calibrated",
                                           np.radians(o["raw_gyro_bias_prior_dps"]))),
             accel_bias_prior=tuple(_priors(calibration, "accel", mode == "calibrated",
                                            o["raw_accel_bias_prior_mg"] * 1e-3 * _G0)))
         rows, runs = [], []
-        for st in steps:
-            raw = imu_samples(session.step_samples(st.index), session.sample_rate_hz,
-                              f"{session.name}: step {st.index}")
+        for group in groups:
+            st = group[0]
+            if len(group) == 1:
+                data = session.step_samples(st.index)
+            else:
+                labels = session.samples["step"].to_numpy()
+                inside = np.nonzero(np.isin(labels, [g.index for g in group]))[0]
+                data = session.samples.iloc[inside[0]:inside[-1] + 1]
+            raw = imu_samples(data, session.sample_rate_hz, f"{session.name}: step {st.index}")
             samples = compensate(raw, calibration, ("gyro", "accel")) if mode == "calibrated" else raw
-            row, res, err = _position(session, st, samples, noise, cfg, az, float(o["bias_reference_s"]))
+            row, res, err = _position(session, group, samples, noise, cfg, az, float(o["bias_reference_s"]))
             rows.append(row)
             runs.append({"result": res, "errors_deg": err})
         blocks[mode] = _block(rows)
         payload[mode] = runs
     result = {"raw": blocks["raw"], "calibrated": blocks["calibrated"], "calibration_id": calibration.id,
-              "measurements": list(measurements), "update_interval_s": float(o["update_interval_s"])}
+              "measurements": list(measurements), "update_interval_s": float(o["update_interval_s"]),
+              "heading_source": o["heading_source"]}
     return ProcedureResult(NAME, result, None, payload, _summary(blocks), warnings)
 
 

@@ -22,8 +22,9 @@ NOISE = ProcessNoise(np.full(3, ARW), np.full(3, VRW), np.full(3, 1e-8), np.full
 
 
 def table_run(mount: Rotation, duration_s: float, seed: int, gyro_bias=np.zeros(3), accel_bias=np.zeros(3),
-              rate_profile=None, mag_bias=np.zeros(3), mag_noise_ut: float = 0.05):
-    """(ImuSamples, true attitudes Rotation (N,)) of a table run; ``rate_profile(t)`` rad/s about down."""
+              rate_profile=None, mag_bias=np.zeros(3), mag_noise_ut: float = 0.05, arw: float = ARW, vrw: float = VRW):
+    """(ImuSamples, true attitudes Rotation (N,)) of a table run; ``rate_profile(t)`` rad/s about down;
+    ``arw`` rad/√s and ``vrw`` m/s/√s the white noise densities (default the module's)."""
     rng = np.random.default_rng(seed)
     n = int(round(duration_s * FS))
     t = np.arange(n) / FS
@@ -31,8 +32,8 @@ def table_run(mount: Rotation, duration_s: float, seed: int, gyro_bias=np.zeros(
     psi = np.concatenate([[0.0], np.cumsum(0.5 * (rate[1:] + rate[:-1])) / FS])
     att = Rotation.from_euler("z", psi[:, None]) * mount
     w_n = earth_rate_ned(LAT) + np.outer(rate, [0.0, 0.0, 1.0])
-    gyro = att.inv().apply(w_n) + gyro_bias + rng.normal(0.0, ARW * np.sqrt(FS), (n, 3))
+    gyro = att.inv().apply(w_n) + gyro_bias + rng.normal(0.0, arw * np.sqrt(FS), (n, 3))
     accel = (att.inv().apply(np.tile(-gravity_ned(LAT), (n, 1))) + accel_bias
-             + rng.normal(0.0, VRW * np.sqrt(FS), (n, 3)))
+             + rng.normal(0.0, vrw * np.sqrt(FS), (n, 3)))
     mag = att.inv().apply(np.tile(MAG_NED, (n, 1))) + mag_bias + rng.normal(0.0, mag_noise_ut, (n, 3))
     return ImuSamples(t, gyro, accel, mag, None, 1.0 / FS, (), "synthetic"), att

@@ -96,3 +96,59 @@ def test_thesis_attitude_hold_with_a_constant_accel_bias():
     np.testing.assert_allclose(attitude_errors(res.attitude, att[0])[-1, :2], _implied_tilt_error(bias), atol=3.5e-4)
     assert np.all(np.abs(res.gyro_bias[-1] - GYRO_BIAS) < 3 * res.gyro_bias_sigma[-1])
     assert np.all(res.weights[-30:] > 0)
+
+
+# -- rotating alignment: paper 001's pre-calibration profile on the table ---------------------------
+HG_ARW = np.radians(0.125) / 60.0  # rad/sqrt(s): HG1700, paper 001 table 5-1
+HG_VRW = 0.065 / 60.0  # m/s/sqrt(s)
+HG_BIAS = np.radians(np.array([1.0, -1.0, 0.7])) / 3600.0  # rad/s: the 1 °/h class of table 5-1
+HOLD_S, TURN_S = 60.0, 9.0  # holds of 60 s, 90° turns at 10 °/s
+
+
+def _turns(t):
+    k = np.floor((t - HOLD_S) / (HOLD_S + TURN_S))
+    tt = (t - HOLD_S) - k * (HOLD_S + TURN_S)
+    return np.where((t > HOLD_S) & (k < 4) & (tt < TURN_S), np.radians(10.0), 0.0)
+
+
+@pytest.fixture(scope="module")
+def pre_calibration():
+    """5 min: hold, then four 90° turns each followed by a hold (back to the start azimuth), heading 30°."""
+    samples, att = table_run(from_rph(0.0, 0.0, np.radians(30.0)), HOLD_S + 4 * (HOLD_S + TURN_S), seed=1,
+                             gyro_bias=HG_BIAS, rate_profile=_turns, arw=HG_ARW, vrw=HG_VRW)
+    noise = type(NOISE)(np.full(3, HG_ARW), np.full(3, HG_VRW), np.full(3, 1e-9), np.full(3, 1e-7))
+    return samples, att, noise, _turns(samples.t) == 0
+
+
+def _heading(res, samples, att):
+    idx = np.searchsorted(samples.t, res.t)
+    return np.degrees(attitude_errors(res.attitude, att[idx]))[:, 2]
+
+
+def test_rotation_makes_the_heading_observable_without_an_external_heading(pre_calibration):
+    # No external heading: the gyrocompass of the first 30 s starts ~5° off (1 °/h bias over the 11 °/h
+    # horizontal Earth rate, plus 0.125 °/sqrt(h) over 30 s: 0.7 °/h, i.e. ~3.5°). At rest the bias and the
+    # heading error are one unobservable combination; the turns change the bias's direction in NED and
+    # separate them (paper 001 sec. 4, Fig. 4-1, 5-5). ZARUPT beats ZUPT: the gyros' Earth-rate
+    # information is used directly (Fig. 4-1). Honest: the final error within 3 sigma (99.7 %, fixed seed).
+    samples, att, noise, still = pre_calibration
+    sig = {}
+    for meas in (("position", "velocity"), ("position", "velocity", "zarupt")):
+        cfg = zupt.ZuptConfig(level_s=30.0, measurements=meas, heading_source="gyrocompass",
+                              gyro_bias_prior=np.radians(3.0) / 3600, accel_bias_prior=0.01)
+        res = zupt.align(samples, noise, LAT, None, 0.0, cfg, still=still)
+        err = _heading(res, samples, att)
+        s = np.degrees(res.attitude_sigma[:, 2])
+        assert abs(err[-1]) < 3 * s[-1]
+        assert s[-1] < 0.5 * s[0]  # the turns shrink the heading sigma (at rest it would stay near s[0])
+        assert np.linalg.norm(res.velocity[-1]) < 0.01  # m/s: the zero-velocity updates hold through the turns
+        sig[meas[-1]] = s[-1]
+    assert sig["zarupt"] < 0.85 * sig["velocity"]
+
+
+def test_rotation_refuses_the_heading_hold(pre_calibration):
+    samples, _, noise, still = pre_calibration
+    with pytest.raises(AnalysisError, match="the unit turns: the heading / attitude holds do not apply"):
+        zupt.align(samples, noise, LAT, 0.5, 0.0, zupt.ZuptConfig(level_s=30.0), still=still)
+    with pytest.raises(AnalysisError, match="no external heading"):
+        zupt.ZuptConfig(heading_source="gyrocompass")

@@ -106,3 +106,34 @@ def test_forced_set_of_another_unit_warns(run):
     s2.samples = gappy
     with pytest.raises(SessionError, match="gap"):
         proc.analyze(s2, calibration=cal)
+
+
+def test_rotating_alignment_on_the_table_without_an_external_heading():
+    # HG1700 (paper 001 table 5-1), one position with two 90° turns, 40 s holds, no external heading
+    # (gyrocompass over the first 30 s), ZUPT + ZARUPT at the holds: the heading comes from the Earth
+    # rate and the turns. Calibrated run honest: heading and gyro-bias errors within 3 sigma (99.7 %;
+    # the bias sigma with the table reference's in quadrature), the heading sigma below its start's.
+    spec = load_spec("hg1700")
+    opts = {"positions": [["z-down", 30.0]], "dwell_s": 40.0, "turns": 2}
+    session, truth = simulate(proc.sequence(spec, **opts), spec, seed=4)
+    assert [s.kind for s in session.steps] == ["static", "index", "static", "index", "static"]
+    res = proc.analyze(session, calibration=calibration_from_truth(truth), zarupt=True,
+                       heading_source="gyrocompass", level_s=30.0)
+    assert res.result["measurements"] == ["position", "velocity", "zarupt"]
+    p = res.result["calibrated"]["positions"][0]
+    assert p["turns"] == 2 and len(res.result["calibrated"]["positions"]) == 1
+    assert abs(p["heading_error_deg"]) < 3 * p["attitude_sigma_deg"][2]
+    sigma = np.hypot(p["gyro_bias_sigma"], p["gyro_bias_reference_sigma"])
+    assert np.all(np.abs(p["gyro_bias_error"]) < 3 * sigma)
+    assert p["velocity_error_mps"] < 0.01
+    with pytest.raises(AnalysisError, match="attitude_hold needs positions without turns"):
+        proc.analyze(session, calibration=calibration_from_truth(truth), attitude_hold=True)
+
+
+def test_full_attitude_hold_option():
+    # thesis eq. 3.57: roll, pitch and heading held at the frozen solution (option attitude_hold)
+    spec = load_spec("industrial_mems")
+    session, truth = simulate(proc.sequence(spec, positions=[["z-down", 0.0]], dwell_s=60.0), spec, seed=5)
+    res = proc.analyze(session, calibration=calibration_from_truth(truth), attitude_hold=True)
+    assert res.result["measurements"] == ["position", "velocity", "attitude"]
+    assert res.result["calibrated"]["velocity_error_mps"] < 0.01

@@ -54,6 +54,7 @@ from workbench.nav.strapdown import (BlockPropagator, coarse_level, euler_rph, f
 N_STATES = 15
 P, V, A, BA, BG = (slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), slice(12, 15))
 MEASUREMENTS = ("position", "velocity", "attitude", "heading", "zarupt")
+HEADING_SOURCES = ("external", "gyrocompass")
 
 
 @dataclass(frozen=True)
@@ -70,6 +71,10 @@ class ZuptConfig:
     ``max_rejections``: a measurement rejected (weight 0) that many corrections in a row is
     taken unscaled at the next one, since the unit is known to be at rest (without this, one
     knock would leave the mechanised velocity beyond c1 for good and the filter would diverge).
+    ``heading_source``: ``external`` (the ``heading`` argument of :func:`align`, 1-sigma
+    ``heading_sigma``) or ``gyrocompass`` (no external heading: the initial heading from the
+    levelled mean gyro output of the levelling window, its error correlated with the gyro bias,
+    paper 001 eq. 48; the heading is then only what the filter observes).
     """
 
     level_s: float = 5.0
@@ -86,11 +91,17 @@ class ZuptConfig:
     accel_bias_prior: float | tuple = 0.1
     heading_sigma: float = np.radians(0.1)
     max_rejections: int = 3
+    heading_source: str = "external"
 
     def __post_init__(self) -> None:
         unknown = set(self.measurements) - set(MEASUREMENTS)
         if unknown:
             raise AnalysisError(f"zupt: unknown measurement(s) {sorted(unknown)} (known: {', '.join(MEASUREMENTS)})")
+        if self.heading_source not in HEADING_SOURCES:
+            raise AnalysisError(f"zupt: heading_source {self.heading_source!r} (known: {', '.join(HEADING_SOURCES)})")
+        if self.heading_source == "gyrocompass" and {"heading", "attitude"} & set(self.measurements):
+            raise AnalysisError("zupt: with no external heading (gyrocompass) the heading cannot be held: drop the "
+                                "heading / attitude measurements")
         if not self.update_interval_s > 0 or not self.level_s > 0:
             raise AnalysisError("zupt: level_s and update_interval_s must be positive")
 
@@ -101,11 +112,12 @@ class ZuptResult:
 
     ``t`` (E,) s; ``rph`` (E, 3) roll, pitch, heading rad after each correction;
     ``attitude_sigma`` (E, 3) 1-sigma of the attitude error about north, east, down, rad (down,
-    the heading, includes the external heading's own sigma);
+    the heading, includes the external heading's own sigma while the heading is held);
     ``position`` (E, 3) m NED offset from the frozen position; ``velocity`` (E, 3) m/s NED;
     ``accel_bias`` / ``gyro_bias`` (E, 3) body-frame estimates with ``*_sigma`` 1-sigma;
     ``drift_velocity`` (E,) m/s and ``drift_attitude`` (E,) rad: how far the free mechanisation
-    moved from the frozen solution over the interval before each correction; ``weights``
+    moved from the frozen solution over the interval before each correction (``drift_attitude``
+    NaN over an interval in which the table turns); ``weights``
     (E, m) the gain scale factors of eq. 47; ``attitude`` the body-to-NED Rotation (E,);
     ``initial_rph`` the frozen roll, pitch, heading; ``t_start`` the EKF start time, s;
     ``drift_noise`` (m/s, rad) the 1-sigma norms of the velocity and attitude that white
@@ -141,7 +153,7 @@ class ZuptResult:
         """
         v_tol = 5.0 * self.drift_noise[0] if velocity_tol is None else velocity_tol
         a_tol = 5.0 * self.drift_noise[1] if attitude_tol is None else attitude_tol
-        ok = (self.drift_velocity < v_tol) & (self.drift_attitude < a_tol)
+        ok = (self.drift_velocity < v_tol) & (np.isnan(self.drift_attitude) | (self.drift_attitude < a_tol))
         if not ok[-1]:
             return None
         bad = np.nonzero(~ok)[0]
@@ -166,14 +178,34 @@ def _continuous_model(c: np.ndarray, f_n: np.ndarray, w_ie: np.ndarray, noise: P
     return F, Q
 
 
-def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: float,
-          height: float = 0.0, config: ZuptConfig = ZuptConfig()) -> ZuptResult:
-    """Run the ZUPT fine alignment on static ``samples`` (gyro rad/s, accel m/s^2, body frame).
+def gyrocompass(rate_level: np.ndarray, latitude: float) -> float:
+    """Heading rad of the body x axis from the mean gyro output rotated into the levelled frame (3,) rad/s.
+
+    The horizontal Earth rate ``Omega cos(lat)`` points north: ``psi = atan2(-w_y, w_x)`` of the
+    level-frame rate (paper 001 eq. 48). A gyro bias b moves it by ``b_h / (Omega cos(lat))``.
+    """
+    del latitude  # the direction does not depend on it; the sensitivity does (see the docstring)
+    return float(np.arctan2(-rate_level[1], rate_level[0]))
+
+
+def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: float | None,
+          height: float = 0.0, config: ZuptConfig = ZuptConfig(), still: np.ndarray | None = None) -> ZuptResult:
+    """Run the ZUPT fine alignment on ``samples`` (gyro rad/s, accel m/s^2, body frame) of a unit on a table.
 
     ``latitude`` rad and ``height`` m of the site; ``heading`` rad the external heading of the
-    body x axis (clockwise from true north). The first ``config.level_s`` seconds level the
-    unit; the EKF runs on the rest at the full sample rate, correcting every
-    ``config.update_interval_s``.
+    body x axis (clockwise from true north; ignored, may be None, with ``heading_source =
+    "gyrocompass"``). The first ``config.level_s`` seconds level the unit (at rest); the EKF runs
+    on the rest at the full sample rate, correcting every ``config.update_interval_s``.
+
+    ``still`` (N,) bool: samples at which the unit does not turn (default: all). A table that
+    turns the unit about the vertical between holds (paper 001 sec. 4's pre-calibration profile)
+    keeps it at zero velocity, so the zero-velocity and position updates hold throughout, while
+    the zero angular rate update is applied only to intervals entirely still. With turns, the
+    mechanisation follows them with the gyros and the error model's ``-C`` (accelerometer and
+    gyro bias into velocity and attitude) is evaluated at the block's mechanised attitude: the
+    biases seen in NED change with the turn, which separates the heading error from the gyro
+    bias (heading observable without an external heading). The heading / attitude holds need a
+    unit that does not turn.
     """
     dt = samples.dt
     n_level = int(round(config.level_s / dt))
@@ -185,6 +217,17 @@ def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: fl
     w_ie = earth_rate_ned(latitude)
     g_n = gravity_ned(latitude, height)
     roll0, pitch0 = coarse_level(samples.accel[:n_level])
+    still = np.ones(len(samples), bool) if still is None else np.asarray(still, bool)
+    rotating = not bool(np.all(still[n_level:]))
+    if not np.all(still[:n_level]):
+        raise AnalysisError(f"{samples.source}: the unit turns during the {config.level_s} s levelling window")
+    if rotating and {"heading", "attitude"} & set(config.measurements):
+        raise AnalysisError(f"{samples.source}: the unit turns: the heading / attitude holds do not apply "
+                            "(use position, velocity, zarupt)")
+    w_lvl = from_rph(roll0, pitch0, 0.0).apply(samples.gyro[:n_level].mean(axis=0))
+    compass = config.heading_source == "gyrocompass"
+    if compass:
+        heading = gyrocompass(w_lvl, latitude)
     c_init = from_rph(roll0, pitch0, heading)
     ci = c_init.as_matrix()
     g_meas = float(np.linalg.norm(samples.accel[:n_level].mean(axis=0)))
@@ -202,12 +245,26 @@ def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: fl
     Pm[A, A] = S @ Pm[BA, BA] @ S.T + np.eye(3) * config.attitude_sigma_rad ** 2  # dtheta0 = -S b_a
     Pm[A, BA] = -S @ Pm[BA, BA]
     Pm[BA, A] = Pm[A, BA].T
+    if compass:
+        # psi_est = atan2(-w_y, w_x) of the level-frame mean: a bias b (body) moves it by J b, so the
+        # heading error (true - est, about down) is -J b minus the white noise's share over the window
+        lvl = from_rph(roll0, pitch0, 0.0).as_matrix()
+        w_h2 = w_lvl[0] ** 2 + w_lvl[1] ** 2
+        jac = np.array([w_lvl[1], -w_lvl[0], 0.0]) / w_h2 @ lvl  # d psi / d w_body
+        Pm[8, BG] = -jac @ Pm[BG, BG]
+        Pm[BG, 8] = Pm[8, BG]
+        Pm[8, 8] += jac @ Pm[BG, BG] @ jac + jac @ np.diag(noise.gyro_white ** 2 / (n_level * dt)) @ jac
 
     # Jacobians at the frozen solution (first-estimates Jacobians): re-linearising at the
     # corrected attitude would leak spurious information into the unobservable
     # tilt / horizontal accel-bias direction. The unit is static, so they are constant.
-    F, Q = _continuous_model(ci, np.array([0.0, 0.0, -g_meas]), w_ie, noise)
-    phi, qd = van_loan(F, Q, n_blk * dt)
+    # the external heading's sigma: outside the filter while the heading is held (it cannot reduce it),
+    # its prior when the table turns (then the filter observes the heading); none from the gyrocompass
+    heading_extra = 0.0 if (compass or rotating) else config.heading_sigma
+    if rotating and not compass:
+        Pm[8, 8] += config.heading_sigma ** 2
+    f_n = np.array([0.0, 0.0, -g_meas])
+    phi, qd = van_loan(*_continuous_model(ci, f_n, w_ie, noise), n_blk * dt)
     prop = BlockPropagator(n_blk, dt, w_ie)
     c = ci
     pos, vel = np.zeros(3), np.zeros(3)
@@ -217,7 +274,13 @@ def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: fl
     e_cor_inv = e_cor.inv()
     n_avg = max(1, int(round(config.zarupt_window_s / dt)))
     use = config.measurements
-    rejected = None  # consecutive rejections per measurement row
+    rejected = {}  # consecutive rejections per measurement (rows)
+    widths = {"position": 3, "velocity": 3, "attitude": 3 if "attitude" in use else 1, "zarupt": 3}
+    order = [m for m in ("position", "velocity", "attitude", "zarupt")
+             if m in use or (m == "attitude" and "heading" in use)]
+    starts = np.cumsum([0] + [widths[m] for m in order])
+    slots = {m: slice(int(a), int(b)) for m, a, b in zip(order, starts[:-1], starts[1:])}
+    n_meas = int(starts[-1])
     hist = {k: [] for k in ("t", "c", "rph_sig", "pos", "vel", "ba", "bas", "bg", "bgs", "dv", "da", "w")}
     for k in range(n_epochs):
         i0 = n_level + k * n_blk
@@ -230,18 +293,26 @@ def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: fl
         pos = pos + np.sum(0.5 * (v_prev + vel_k), axis=0) * dt
         drift_v = float(np.linalg.norm(vel_k[-1] - vel))
         vel, c_prev, c = vel_k[-1], c, att[-1]
-        drift_a = float(np.arccos(np.clip((np.trace(c @ c_prev.T) - 1.0) / 2.0, -1.0, 1.0)))  # rotation angle
+        blk_still = bool(np.all(still[i0:i0 + n_blk]))
+        drift_a = float(np.arccos(np.clip((np.trace(c @ c_prev.T) - 1.0) / 2.0, -1.0, 1.0))) if blk_still \
+            else np.nan  # rotation angle; a turning table's is not drift
+        c_lin = ci  # Jacobians at the frozen solution while the unit does not turn (module docstring)
+        if rotating:
+            c_lin = att[len(att) // 2]
+            phi, qd = van_loan(*_continuous_model(c_lin, f_n, w_ie, noise), n_blk * dt)
         Pm = phi @ Pm @ phi.T + qd
         # -- corrector (eq. 3.57-3.60, paper 001 eq. 35-40, 46-47) -------------------------------
-        rows, z, r = [], [], []
+        rows, z, r, names = [], [], [], []
         if "position" in use:
             rows.append(np.hstack([np.eye(3), np.zeros((3, 12))]))
             z.append(-pos)
             r.append(np.full(3, config.position_sigma_m ** 2))
+            names.append("position")
         if "velocity" in use:
             rows.append(np.hstack([np.zeros((3, 3)), np.eye(3), np.zeros((3, 9))]))
             z.append(-vel)
             r.append(np.full(3, config.velocity_sigma_mps ** 2))
+            names.append("velocity")
         if "attitude" in use or "heading" in use:
             h = np.zeros((3, N_STATES))
             h[:, A] = np.eye(3)
@@ -251,20 +322,29 @@ def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: fl
             rows.append(h[sel])
             z.append(za[sel])
             r.append(np.full(len(sel), config.attitude_sigma_rad ** 2))
-        if "zarupt" in use:
-            w_avg = np.mean(samples.gyro[max(0, i0 + n_blk - n_avg):i0 + n_blk] - bg, axis=0)
+            names.append("attitude")
+        w_window = samples.gyro[max(0, i0 + n_blk - n_avg):i0 + n_blk]
+        if "zarupt" in use and np.all(still[max(0, i0 + n_blk - n_avg):i0 + n_blk]):
+            w_avg = np.mean(w_window - bg, axis=0)
             h = np.zeros((3, N_STATES))
-            h[:, A] = -ci.T @ skew(w_ie)
+            h[:, A] = -c_lin.T @ skew(w_ie)
             h[:, BG] = -np.eye(3)
             rows.append(h)
             z.append(-(w_avg - c.T @ w_ie))  # body-frame form of eq. 38: R diagonal
-            r.append(noise.gyro_white ** 2 / (n_avg * dt))
+            r.append(noise.gyro_white ** 2 / (len(w_window) * dt))
+            names.append("zarupt")
         H, zv, rv = np.vstack(rows), np.concatenate(z), np.concatenate(r)
-        if rejected is None:
-            rejected = np.zeros(len(zv), int)
-        Pm, dx, weights = sequential_update(Pm, H, zv, rv, (config.c0, config.c1) if config.gain_scaling else None,
-                                            rejected >= config.max_rejections)
-        rejected = np.where(weights == 0.0, rejected + 1, 0)
+        unscaled = np.concatenate([rejected.get(nm, np.zeros(len(zz), int)) >= config.max_rejections
+                                   for nm, zz in zip(names, z)])
+        Pm, dx, w_rows = sequential_update(Pm, H, zv, rv, (config.c0, config.c1) if config.gain_scaling else None,
+                                           unscaled)
+        weights = np.full(n_meas, np.nan)
+        k_row = 0
+        for nm, zz in zip(names, z):
+            w_nm = w_rows[k_row:k_row + len(zz)]
+            rejected[nm] = np.where(w_nm == 0.0, rejected.get(nm, np.zeros(len(zz), int)) + 1, 0)
+            weights[slots[nm]] = w_nm
+            k_row += len(zz)
         # -- feedback (eq. 3.61-3.67) -------------------------------------------------------------
         pos, vel = pos + dx[P], vel + dx[V]
         c = Rotation.from_rotvec(dx[A]).as_matrix() @ c
@@ -272,7 +352,7 @@ def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: fl
         att_sig = np.sqrt(np.diag(Pm[A, A]))
         hist["t"].append(blk.t[-1])
         hist["c"].append(c)
-        hist["rph_sig"].append(np.array([att_sig[0], att_sig[1], np.hypot(att_sig[2], config.heading_sigma)]))
+        hist["rph_sig"].append(np.array([att_sig[0], att_sig[1], np.hypot(att_sig[2], heading_extra)]))
         hist["pos"].append(pos.copy())
         hist["vel"].append(vel.copy())
         hist["ba"].append(ba.copy())
