@@ -45,6 +45,9 @@ GAP_FREE = ("totdev", "mtotdev", "ttotdev", "htotdev", "theo1", "theoh", "mtie")
 # largest m as a fraction of the phase points: a statistic needs at least one full difference
 _SPAN = {"adev": 2, "oadev": 2, "mdev": 3, "tdev": 3, "hdev": 3, "ohdev": 3, "totdev": 1, "mtotdev": 3,
          "ttotdev": 3, "htotdev": 3, "theo1": 1, "theoh": 1, "mtie": 1, "tierms": 1}
+# Stable32's stop ratios: automatic tau grids end at m = (L - 1) / ratio (L phase points)
+STOP = {"adev": 5, "oadev": 4, "mdev": 4, "tdev": 4, "hdev": 5, "ohdev": 4, "totdev": 2, "mtotdev": 3,
+        "ttotdev": 3, "htotdev": 3, "theo1": 1, "theoh": 1, "mtie": 1, "tierms": 4}
 THEO_BIAS_TAU = 0.1  # TheoH switches from oadev to bias-removed Theo1 above this fraction of the record
 
 
@@ -88,12 +91,13 @@ def factors(n_phase: int, taus: str | np.ndarray | list, rate: float, stat: str)
     """Averaging factors m (int64, sorted, unique) of ``stat`` for ``n_phase`` phase points.
 
     ``taus``: ``"octave"`` (1, 2, 4, ...), ``"decade"`` (1, 2, 4, 10, 20, 40, ...), ``"all"``
-    (every m), or taus in s (rounded to multiples of 1 / rate). Factors leaving no complete
-    difference are dropped; Theo1 keeps even m (its tau is 0.75 m / rate: given taus are
-    matched on that).
+    (every m), ending at Stable32's stop ratio (:data:`STOP`), or taus in s (rounded to multiples
+    of 1 / rate), kept while the statistic has a complete difference. Theo1 keeps even m (its
+    tau is 0.75 m / rate: given taus are matched on that).
     """
     top = max((n_phase - 1) // _SPAN[stat], 1)
     if isinstance(taus, str):
+        top = max(min(top, (n_phase - 1) // STOP[stat]), 1)
         if taus == "octave":
             m = 2 ** np.arange(int(np.log2(max(n_phase, 1))) + 1)
         elif taus == "decade":
@@ -135,6 +139,9 @@ def stability(data: np.ndarray, rate: float = 1.0, stat: str = "oadev", data_typ
     bad_y = gaps if data_type == "freq" else None
     dev, n = _compute(stat, x, m, float(rate), bad_y)
     keep = n > 0
+    if not keep.any():
+        raise AnalysisError(f"{stat}: no averaging factor leaves a complete difference in "
+                            f"{len(np.asarray(data).ravel())} {data_type} points")
     tau = m / float(rate) * (0.75 if stat == "theo1" else 1.0)
     return Stability(stat, tau[keep], m[keep], dev[keep], n[keep], float(rate), len(x), data_type)
 

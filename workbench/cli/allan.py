@@ -24,6 +24,7 @@ if TYPE_CHECKING:  # numpy, pandas, sessions and the fit (scipy.stats, cvxpy) lo
     from workbench.analysis.allan_fit import AllanAnalysis
 
 TIME_COLUMNS = ("t", "time")
+TEXT_SUFFIXES = (".txt", ".dat")
 RATE_TOLERANCE = 0.01  # relative spread of sample intervals accepted as a constant rate
 
 
@@ -81,6 +82,10 @@ def load_record(path: Path, columns: list[str] | None, rate: float | None) -> tu
         return _columns(df, cols, path), float(rate or session.sample_rate_hz), cols, f"{path}: step {step.index}"
     if not path.exists():
         raise AnalysisError(f"{path}: no such file or session folder")
+    if path.suffix.lower() in TEXT_SUFFIXES:
+        if rate is None:
+            raise AnalysisError(f"{path}: a text file of numbers has no time column: give the sample rate with --rate HZ")
+        return _text_column(path), float(rate), columns or ["data"], str(path)
     df = read_samples(path)
     time_col = next((c for c in TIME_COLUMNS if c in df.columns), None)
     cols = columns or [c for c in df.columns if c not in (*TIME_COLUMNS, "step") and pd.api.types.is_numeric_dtype(df[c])]
@@ -92,6 +97,22 @@ def load_record(path: Path, columns: list[str] | None, rate: float | None) -> tu
         if len(gaps):
             y = np.insert(y, gaps + 1, np.nan, axis=0)
     return y, float(rate), cols, str(path)
+
+
+def _text_column(path: Path) -> np.ndarray:
+    """One number per line (Stable32's data files; ``#`` comments and blank lines skipped), (N, 1)."""
+    import numpy as np
+
+    values = []
+    for row, line in enumerate(path.read_text(errors="replace").splitlines(), 1):
+        text = line.split("#", 1)[0].strip()
+        if not text:
+            continue
+        try:
+            values.append(float(text.split()[0]))
+        except ValueError:
+            raise AnalysisError(f"{path}: line {row}: {text[:40]!r} is not a number") from None
+    return np.asarray(values, float)[:, None]
 
 
 def _columns(df: pd.DataFrame, cols: list[str], path: Path) -> np.ndarray:
@@ -150,9 +171,19 @@ def register(app: typer.Typer) -> None:
         gap_policy: str = typer.Option("error", "--gap-policy", help="NaN / time gaps: error | longest | split"),
         stream: bool = typer.Option(False, "--stream", help="Parquet too large for memory: stream it (no gap policy; "
                                                             "noise exponents from the curve's slopes)."),
+        stat: str = typer.Option(None, "--stat", help="One statistic of the family instead of the IEEE 952 fit: adev "
+                                                      "oadev mdev tdev hdev ohdev totdev mtotdev ttotdev htotdev theo1 "
+                                                      "theoh mtie tierms."),
+        data_type: str = typer.Option("freq", "--data-type", help="With --stat: freq (rate samples) | phase (angle, "
+                                                                   "time error)."),
+        confidence: float = typer.Option(0.95, "--confidence", help="With --stat: two-sided interval level "
+                                                                    "(0.683 = Stable32's 1 sigma)."),
     ) -> None:
-        """Overlapping Allan deviation with 95 % intervals and the IEEE 952 noise terms."""
+        """Overlapping Allan deviation with 95 % intervals and the IEEE 952 noise terms (or --stat NAME)."""
         cols = [c.strip() for c in columns.split(",")] if columns else None
+        if stat is not None:
+            _family(source, cols, rate, stat, data_type, taus, confidence, out_csv)
+            return
         if stream:
             an = _streamed(source, cols, rate, taus)
         else:
@@ -187,3 +218,59 @@ def _streamed(source: Path, cols: list[str] | None, rate: float | None, taus: st
     if source.suffix != ".parquet" or cols is None or rate is None:
         raise AnalysisError(f"{source}: --stream needs a .parquet file, --columns and --rate")
     return analyze_stream(parquet_batches(source, cols), rate, cols, quantity_of(cols), taus, str(source))
+
+
+def parse_taus(taus: str) -> str | list[float]:
+    """``octave`` | ``decade`` | ``all`` | ``<k>-per-decade`` as given, or ``T1,T2,...`` as taus in s."""
+    if "," not in taus and not taus.replace(".", "", 1).replace("e", "", 1).replace("-", "").isdigit():
+        return taus
+    try:
+        return [float(t) for t in taus.split(",") if t.strip()]
+    except ValueError:
+        raise AnalysisError(f"--taus {taus!r}: expected octave, decade, all or taus in s (T1,T2,...)") from None
+
+
+def family_frame(results: list) -> pd.DataFrame:
+    """One row per column and tau: ``column, tau, dev, dev_lo, dev_hi, n, alpha, edf`` (SI of the input)."""
+    import pandas as pd
+
+    rows = [{"column": col, "tau": c.curve.tau[k], "dev": c.curve.dev[k], "dev_lo": c.lo[k], "dev_hi": c.hi[k],
+             "n": int(c.curve.n[k]), "alpha": c.alpha[k], "edf": c.edf[k]}
+            for col, c in results for k in range(len(c.curve.tau))]
+    return pd.DataFrame(rows, columns=["column", "tau", "dev", "dev_lo", "dev_hi", "n", "alpha", "edf"])
+
+
+def _family(source: Path, cols: list[str] | None, rate: float | None, stat: str, data_type: str, taus: str,
+            level: float, out_csv: Path | None) -> None:
+    """``--stat``: one statistic of :mod:`workbench.analysis.stability` per column, with intervals."""
+    from workbench.analysis.stability import STATS, stability, to_phase
+    from workbench.analysis.stability_ci import intervals
+
+    if stat not in STATS:
+        raise AnalysisError(f"--stat {stat!r} is not one of {', '.join(STATS)}")
+    if data_type not in ("freq", "phase"):
+        raise AnalysisError(f"--data-type {data_type!r} is not freq or phase")
+    if not 0.0 < level < 1.0:
+        raise AnalysisError(f"--confidence {level!r} must lie between 0 and 1")
+    y, fs, cols, label = load_record(source, cols, rate)
+    grid = parse_taus(taus)
+    results = []
+    for j, col in enumerate(cols):
+        try:
+            curve = stability(y[:, j], fs, stat, data_type, grid)
+        except AnalysisError as exc:
+            raise AnalysisError(f"{label}: column {col}: {exc}") from None
+        results.append((col, intervals(curve, to_phase(y[:, j], fs, data_type), level)))
+    t = Table("column", "tau s", stat, f"{level:.3g} interval", "n", "alpha", "edf",
+              title=f"{stat} of {label} ({data_type} data, SI of the input)")
+    for col, c in results:
+        for k in range(len(c.curve.tau)):
+            t.add_row(col, f"{c.curve.tau[k]:.4g}", f"{c.curve.dev[k]:.5g}",
+                      "" if not c.edf[k] == c.edf[k] else f"{c.lo[k]:.5g} .. {c.hi[k]:.5g}",
+                      str(int(c.curve.n[k])), "" if c.alpha[k] != c.alpha[k] else str(int(c.alpha[k])),
+                      "" if c.edf[k] != c.edf[k] else f"{c.edf[k]:.4g}")
+    out.print(t)
+    if out_csv is not None:
+        out_csv.parent.mkdir(parents=True, exist_ok=True)
+        family_frame(results).to_csv(out_csv, index=False)
+        out.print(f"curves: {out_csv}")

@@ -1,0 +1,159 @@
+"""Confidence intervals of the stability family (:mod:`workbench.analysis.stability`).
+
+Noise type per tau: lag-1 autocorrelation of the phase decimated by m (Riley & Greenhall 2004,
+:func:`workbench.analysis.allan_ci.noise_id_decimated`) while at least
+:data:`MIN_POINTS_LAG1` decimated points remain; beyond, the exponent carried from the last
+identified tau (Stable32 switches to the B1 / R(n) ratios there; here the carried exponent is
+compared with the one from the curve's local slope and the one giving fewer degrees of freedom is
+kept, so long-tau intervals are never narrower than either reading).
+
+EDF: Greenhall & Riley (2003) for the finite-difference statistics (adev / hdev: S = 1,
+oadev / ohdev: S = m, mdev / tdev: F = 1; :func:`workbench.analysis.allan_ci.edf_greenhall`),
+with the counts of used pairs when gaps were skipped; totdev and mtotdev / ttotdev from NIST
+SP 1065 tables 7 and 8 (edf = b T / tau - c); Theo1 / TheoH beyond the oadev part from Howe &
+Tasset's Theo1 EDF (SP 1065 table 11); htotdev with the ohdev EDF (fewer degrees of freedom than
+its own: wider, conservative). MTIE and TIE rms get no interval (NaN). The interval is the
+chi-squared one at two-sided ``level``.
+
+Public: :class:`StabilityCI`, :func:`intervals`, :func:`edf_of`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.stats import chi2
+
+from workbench.analysis.allan_ci import edf_greenhall, noise_id_decimated
+from workbench.analysis.stability import Stability
+
+MIN_POINTS_LAG1 = 30  # decimated points for the lag-1 method (Riley & Greenhall: reliable from ~30)
+_GREENHALL = {"adev": (2, False, False), "oadev": (2, True, False), "mdev": (2, True, True),
+              "tdev": (2, True, True), "hdev": (3, False, False), "ohdev": (3, True, False),
+              "htotdev": (3, True, False)}  # d, overlapping (S = m), modified (F = 1)
+_TOT = {0: (1.50, 0.0), -1: (1.17, 0.22), -2: (0.93, 0.36)}  # SP 1065 table 7, alpha: (b, c)
+_MTOT = {2: (1.90, 2.1), 1: (1.20, 1.40), 0: (1.10, 1.2), -1: (0.85, 0.50), -2: (0.75, 0.31)}  # table 8
+NO_INTERVAL = ("mtie", "tierms")
+
+
+@dataclass(frozen=True)
+class StabilityCI:
+    """A :class:`Stability` curve with per-tau ``alpha`` (noise exponent, frequency PSD ~ f^alpha),
+    ``edf`` and the deviation bounds ``lo`` / ``hi`` at two-sided ``level``."""
+
+    curve: Stability
+    alpha: np.ndarray
+    edf: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    level: float
+
+
+def _theo1_edf(alpha: int, n: int, m: int) -> float:
+    """Theo1 EDF (Howe & Tasset; SP 1065 table 11), r = 0.75 m, N phase points."""
+    r = 0.75 * m
+    if alpha == 2:
+        return 0.86 * (n + 1) * (n - 4.0 * r / 3.0) / (n - r) * r / (r + 1.14)
+    if alpha == 1:
+        return (4.798 * n ** 2 - 6.374 * n * r + 12.387 * r) / (np.sqrt(r + 36.6) * (n - r) * (r + 0.3))
+    if alpha == 0:
+        return ((4.1 * n + 0.8) / r - (3.1 * n + 6.5) / n) * r ** 1.5 / (r ** 1.5 + 5.2)
+    if alpha == -1:
+        return (2.0 * n ** 2 - 1.3 * n * r - 3.5 * r) / (n * r) * r ** 3 / (r ** 3 + 2.3)
+    return (4.4 * n - 2.0) / (2.9 * r) * ((4.4 * n - 1) ** 2 - 8.6 * r * (4.4 * n - 1) + 11.4 * r ** 2) \
+        / (4.4 * n - 3) ** 2
+
+
+def edf_of(stat: str, alpha: int, m: int, n_phase: int, n_used: int | None = None) -> float:
+    """Equivalent degrees of freedom of ``stat`` at factor ``m`` for noise exponent ``alpha`` on a
+    record of ``n_phase`` phase points (``n_used``: pairs actually used when gaps were skipped;
+    the EDF is that of a gap-free record with as many pairs)."""
+    alpha = int(alpha)
+    if stat in NO_INTERVAL:
+        return float("nan")
+    if stat in _GREENHALL:
+        d, overlapping, modified = _GREENHALL[stat]
+        if n_used is not None:  # the record a gap-free run of n_used terms would have
+            if overlapping:
+                n_phase = int(n_used) + (3 * m - 1 if modified else d * m)
+            else:
+                n_phase = (int(n_used) + d - 1) * m + 1
+        a = max(alpha, 1 - 2 * d + 1)  # Greenhall needs alpha + 2d > 1
+        return edf_greenhall(a, d, int(m), int(n_phase), overlapping, modified)
+    if stat == "totdev":
+        b, c = _TOT.get(alpha, _TOT[0] if alpha > 0 else _TOT[-2])
+        if alpha > 0:  # phase noise: totdev behaves as oadev there
+            return edf_greenhall(alpha, 2, int(m), int(n_phase), True, False)
+        return b * (n_phase - 1) / m - c
+    if stat in ("mtotdev", "ttotdev"):
+        b, c = _MTOT[int(np.clip(alpha, -2, 2))]
+        return b * (n_phase - 1) / m - c
+    if stat in ("theo1", "theoh"):
+        return _theo1_edf(int(np.clip(alpha, -2, 2)), n_phase, m)
+    raise ValueError(stat)
+
+
+def _identify(x: np.ndarray, m: np.ndarray, dmax: int) -> np.ndarray:
+    """Rounded alpha per factor from the lag-1 ACF of the decimated phase (NaN: too few points)."""
+    out = np.full(len(m), np.nan)
+    finite = np.isfinite(x)
+    xs = x if finite.all() else np.interp(np.arange(len(x)), np.flatnonzero(finite), x[finite])
+    for k, mk in enumerate(m):
+        z = xs[::int(mk)][:1 << 16]
+        if len(z) >= MIN_POINTS_LAG1:
+            out[k] = float(np.clip(np.round(noise_id_decimated(z, dmax)), -2 if dmax == 2 else -4, 2))
+    return out
+
+
+def intervals(curve: Stability, x: np.ndarray, level: float = 0.95, alpha: np.ndarray | None = None) -> StabilityCI:
+    """Chi-squared intervals of ``curve`` computed from phase ``x`` (L,) (:func:`stability.to_phase`).
+
+    ``alpha`` (K,) fixes the noise exponents (as Stable32's manual noise type); by default they are
+    identified as in the module docstring.
+    """
+    k_n = len(curve.m)
+    if curve.stat in NO_INTERVAL:
+        nan = np.full(k_n, np.nan)
+        return StabilityCI(curve, nan, nan, nan.copy(), nan.copy(), level)
+    if alpha is None:
+        dmax = 3 if curve.stat in ("hdev", "ohdev", "htotdev") else 2
+        m_id = np.maximum(np.round(0.75 * curve.m), 1) if curve.stat == "theo1" else curve.m
+        alpha = _identify(x, m_id, dmax)
+        alpha = _fill(curve, alpha)
+    alpha = np.asarray(alpha, float)
+    theo_part = curve.stat == "theoh"
+    edf = np.empty(k_n)
+    for k in range(k_n):
+        stat = curve.stat
+        if theo_part:
+            stat = "theo1" if curve.tau[k] != curve.m[k] / curve.rate else "oadev"
+        gaps = curve.stat in _GREENHALL and curve.stat != "htotdev"
+        edf[k] = edf_of(stat, int(alpha[k]), int(curve.m[k]), curve.n_phase, int(curve.n[k]) if gaps else None)
+    edf = np.maximum(edf, 1e-3)
+    q = (1.0 - level) / 2.0
+    lo = curve.dev * np.sqrt(edf / chi2.ppf(1.0 - q, edf))
+    hi = curve.dev * np.sqrt(edf / chi2.ppf(q, edf))
+    return StabilityCI(curve, alpha, edf, lo, hi, level)
+
+
+def _fill(curve: Stability, alpha: np.ndarray) -> np.ndarray:
+    """Exponents of the taus too long to identify: of the one carried from the last identified tau
+    and the one from the local slope of the curve, the one giving fewer degrees of freedom."""
+    out = alpha.copy()
+    if len(curve.tau) > 1:
+        mu = np.gradient(np.log(np.maximum(curve.dev, 1e-300)), np.log(curve.tau))
+        if curve.stat in ("tdev", "ttotdev"):
+            mu = mu - 1.0
+        slope = np.clip(np.round(-2.0 * mu - 1.0), -2, 1)
+    else:
+        slope = np.zeros(1)
+    last = slope[0] if not np.isfinite(alpha[0]) else alpha[0]
+    for k in range(len(alpha)):
+        if np.isfinite(alpha[k]):
+            last = alpha[k]
+            continue
+        cands = {float(last), float(slope[k])}
+        out[k] = min(cands, key=lambda a: edf_of(curve.stat if curve.stat != "theoh" else "theo1", int(a),
+                                                  int(curve.m[k]), curve.n_phase))
+    return out
