@@ -34,7 +34,30 @@ def _simulated():
         seq = PROC.sequence(common.load_spec(grade), duration_s=float(minutes) * 60.0,
                             temperature_c=float(temperature), soak=soak)
         session, _ = simulate(seq, grade, seed=seed)
+        hold = max(session.steps_of_kind("static"), key=lambda step: step.duration)
+        st.session_state["allan.samples"] = (session.step_samples(hold.index)[["gx", "gy", "gz"]],
+                                             float(session.sample_rate_hz))
         return PROC.analyze(session)
+
+
+def _statistic() -> None:
+    """Any statistic of the family (workbench.analysis.stability) on the simulated hold's gyro."""
+    from workbench.analysis.stability import STATS, stability, to_phase
+    from workbench.analysis.stability_ci import intervals
+
+    samples = st.session_state.get("allan.samples")
+    if samples is None:
+        return
+    st.subheader("Stability statistics (gyro, rad/s; 95 % intervals)")
+    stat = st.selectbox("Statistic", STATS, index=STATS.index("oadev"), key="allan.stat")
+    frame, rate = samples
+    rows = []
+    for col in frame.columns:
+        y = frame[col].to_numpy(float)
+        ci = intervals(stability(y, rate, stat, "freq", "octave"), to_phase(y, rate, "freq"))
+        rows += [{"column": col, "tau s": ci.curve.tau[k], stat: ci.curve.dev[k], "lo": ci.lo[k], "hi": ci.hi[k],
+                  "alpha": ci.alpha[k], "edf": ci.edf[k]} for k in range(len(ci.curve.tau))]
+    st.dataframe(pd.DataFrame(rows), hide_index=True, use_container_width=True)
 
 
 def main() -> None:
@@ -56,6 +79,8 @@ def main() -> None:
     st.subheader("Noise terms (lab units, 95 % intervals)")
     st.dataframe(pd.DataFrame(PROC.noise_terms_lab(result)), hide_index=True, use_container_width=True)
     st.text("\n".join(result.summary))
+    with common.guarded("allan.stat", catch_all=True):
+        _statistic()
 
 
 main()
