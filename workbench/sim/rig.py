@@ -222,7 +222,7 @@ class SimRig:
         st.table_angle = float(np.mod(angle[-1], 2 * np.pi))
         st.table_rate = float(rate_profile[-1])
         st.mount = np.asarray(mount).tolist()
-        return pd.DataFrame(data, copy=False)
+        return pd.DataFrame(data)
 
     def _temperatures(self, n: int) -> tuple[np.ndarray, np.ndarray]:
         """Air temperature (moving to the chamber target at its ramp rate) and the unit's lag."""
