@@ -315,16 +315,19 @@ def _alive(pid: int) -> bool:
 def _recorded(session_dir: Path | None) -> tuple[int, float, int | None, float | None]:
     """(steps recorded, rig s recorded, steps planned, rig s planned) from a session.json being written.
 
-    The runner writes the manifest with its ``planned`` steps first and appends to ``steps``
-    after every completed step; a session from elsewhere has no plan (None).
+    The runner writes the manifest with its ``planned`` steps first and appends every completed
+    step to its step log; a session from elsewhere has no plan (None).
     """
+    from workbench.session import recorded_steps
+
     if session_dir is None:
         return 0, 0.0, None, None
     try:
         manifest = json.loads((session_dir / "session.json").read_text())
-    except (OSError, json.JSONDecodeError):  # being replaced right now: try again on the next poll
+        steps = recorded_steps(session_dir, manifest)
+    except (OSError, json.JSONDecodeError, SessionError):  # being replaced right now: try again on the next poll
         return 0, 0.0, None, None
-    steps, planned = manifest.get("steps", []), manifest.get("planned")
+    planned = manifest.get("planned")
     t_done = float(sum(float(s.get("t_end", 0)) - float(s.get("t_start", 0)) for s in steps))
     if not planned:
         return len(steps), t_done, None, None

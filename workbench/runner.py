@@ -1,15 +1,19 @@
 """The runner: records a sequence on a rig into a session, step by step.
 
-Every completed step is written at once (``parts/step_NNNNN.parquet`` and the manifest
-``session.json``, both atomically), so a run that is killed leaves every completed step
-readable and ``resume`` continues from the first incomplete step. When the last step is
-done the parts are consolidated into ``samples.parquet``. The rig's limits are checked for
-the whole plan before anything moves.
+Every completed step is written at once: its samples to ``parts/step_NNNNN.parquet``
+(atomically), then one line (its record and the rig state after it) appended to the step log
+``steps.jsonl`` and synced to disk, so a run that is killed leaves every completed step
+readable and ``resume`` continues from the first incomplete step. The manifest
+``session.json`` is written twice: with the plan before anything moves, and complete when the
+last step is done, when the samples (kept in memory, not read back from the parts) are
+consolidated into ``samples.parquet`` and the parts and the log removed. The rig's limits are
+checked for the whole plan before anything moves.
 """
 
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import uuid
 from collections.abc import Callable
@@ -22,7 +26,7 @@ import pandas as pd
 from workbench.calset import Unit
 from workbench.errors import SessionError
 from workbench.sequence import PlannedStep, Sequence
-from workbench.session import FORMAT, Session, StepRecord, load_session, write_manifest
+from workbench.session import FORMAT, STEP_LOG, Session, StepRecord, step_log, write_manifest
 
 Progress = Callable[[int, int, StepRecord], None]
 PARTS = "parts"
@@ -45,36 +49,55 @@ class Recording:
         self.out_dir = out_dir
         self.manifest = manifest
         self.plan = plan
-        self.frames: list[pd.DataFrame] = []
+        self.resumed = len(manifest["steps"])  # steps recorded before (their samples are in the parts)
+        self.frames: list[pd.DataFrame] = []  # samples of the steps recorded here, for the consolidation
 
     @property
     def done(self) -> int:
         return len(self.manifest["steps"])
 
     def add(self, samples: pd.DataFrame, record: StepRecord, rig_state: dict) -> None:
-        self.manifest["steps"].append(record.to_dict())
+        step = record.to_dict()
+        self.manifest["steps"].append(step)
         self.manifest["rig_state"] = rig_state
+        self.frames.append(samples)
         if self.out_dir is None:
-            self.frames.append(samples)
             return
         parts = self.out_dir / PARTS
         parts.mkdir(exist_ok=True)
         tmp = parts / f".step_{record.index:05d}.tmp"
         samples.to_parquet(tmp, index=False)
         tmp.replace(parts / f"step_{record.index:05d}.parquet")
-        write_manifest(self.out_dir, self.manifest)
+        line = json.dumps({"step": step, "rig_state": rig_state}, default=_json_default) + "\n"
+        with open(self.out_dir / STEP_LOG, "a") as log:  # the step counts as recorded once this line is on disk
+            log.write(line)
+            log.flush()
+            os.fsync(log.fileno())
 
     def finish(self) -> Session:
         self.manifest["complete"] = True
         if self.out_dir is None:
             return _in_memory(self.manifest, pd.concat(self.frames, ignore_index=True))
-        df = read_parts(self.out_dir)
+        earlier = [_part(self.out_dir, s["index"]) for s in self.manifest["steps"][:self.resumed]]
+        df = pd.concat([*earlier, *self.frames], ignore_index=True)
+        session = _in_memory(self.manifest, df, self.out_dir)  # validated before anything is replaced
         tmp = self.out_dir / ".samples.parquet.tmp"
         df.to_parquet(tmp, index=False)
         tmp.replace(self.out_dir / "samples.parquet")
         write_manifest(self.out_dir, self.manifest)
+        (self.out_dir / STEP_LOG).unlink(missing_ok=True)
         shutil.rmtree(self.out_dir / PARTS, ignore_errors=True)
-        return load_session(self.out_dir)
+        return session
+
+
+def _json_default(value):
+    """numpy scalars and arrays in a rig state, as JSON."""
+    return np.asarray(value).tolist()
+
+
+def _part(directory: Path, index: int) -> pd.DataFrame:
+    """The samples of step ``index`` of an unfinished recording."""
+    return pd.read_parquet(directory / PARTS / f"step_{index:05d}.parquet")
 
 
 def read_parts(directory: Path) -> pd.DataFrame:
@@ -85,14 +108,15 @@ def read_parts(directory: Path) -> pd.DataFrame:
     return pd.concat([pd.read_parquet(f) for f in files], ignore_index=True)
 
 
-def _in_memory(manifest: dict, df: pd.DataFrame) -> Session:
+def _in_memory(manifest: dict, df: pd.DataFrame, path: Path | None = None) -> Session:
     from workbench.session import Site, parse_manifest, validate_samples
 
-    fields, steps = parse_manifest(manifest, "<memory>")
-    validate_samples(df, steps, fields["sample_rate_hz"], "<memory>")
+    source = "<memory>" if path is None else str(path)
+    fields, steps = parse_manifest(manifest, source)
+    validate_samples(df, steps, fields["sample_rate_hz"], source)
     s = fields["site"]
     return Session(fields["id"], Unit(**fields["unit"]), Site(**s), fields["sample_rate_hz"], fields["procedure"],
-                   steps, df, None, fields.get("options", {}), fields.get("rig"), fields.get("created"))
+                   steps, df, path, fields.get("options", {}), fields.get("rig"), fields.get("created"))
 
 
 def start(sequence: Sequence, rig, unit: Unit, procedure: str, out_dir: Path | None,
@@ -128,9 +152,15 @@ def reopen(out_dir: Path) -> Recording:
     if "planned" not in manifest:
         raise SessionError(f"{path}: no planned steps recorded; cannot resume")
     plan = [_planned_from_dict(p) for p in manifest["planned"]]
-    # keep only steps whose samples reached the disk
+    # the steps of the log whose samples reached the disk, up to the first missing one; the rig
+    # state after the last of them is where the resumed recording continues
     parts = {int(f.stem.split("_")[1]) for f in (out_dir / PARTS).glob("step_*.parquet")}
     manifest["steps"] = [s for s in manifest["steps"] if s["index"] in parts]
+    for entry in step_log(out_dir):
+        if entry["step"]["index"] != len(manifest["steps"]) or entry["step"]["index"] not in parts:
+            break
+        manifest["steps"].append(entry["step"])
+        manifest["rig_state"] = entry["rig_state"]
     return Recording(out_dir, manifest, plan)
 
 

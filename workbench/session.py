@@ -28,6 +28,7 @@ from workbench.files import atomic_write_text, file_sha256
 from workbench.values import Unit
 
 FORMAT = "workbench-session/1"
+STEP_LOG = "steps.jsonl"  # an unfinished recording's completed steps, one JSON object a line (runner.py)
 STEP_KINDS = ("static", "rate", "index", "carousel", "soak", "ramp", "drive")
 GYRO = ["gx", "gy", "gz"]
 ACCEL = ["ax", "ay", "az"]
@@ -298,6 +299,39 @@ def _load_manifest(directory: Path) -> dict:
     return data
 
 
+def step_log(directory: Path) -> list[dict]:
+    """The entries (``{"step": {...}, "rig_state": {...}}``) of an unfinished recording's step log.
+
+    In step order, the last entry of a step index winning (a step recorded again on resume);
+    a last line cut short by a kill is ignored. Empty when there is no log.
+    """
+    try:
+        lines = (Path(directory) / STEP_LOG).read_text().splitlines()
+    except FileNotFoundError:
+        return []
+    entries: dict[int, dict] = {}
+    for n, line in enumerate(lines):
+        try:
+            entry = json.loads(line)
+        except json.JSONDecodeError:
+            if n == len(lines) - 1:
+                break  # the line being written when the recording was killed
+            raise SessionError(f"{directory / STEP_LOG}: line {n + 1} is not valid JSON") from None
+        entries[int(entry["step"]["index"])] = entry
+    return [entries[i] for i in sorted(entries)]
+
+
+def recorded_steps(directory: Path, manifest: Mapping) -> list[dict]:
+    """The completed steps of a session folder: the manifest's, and those of the step log of a
+    recording that has not finished (the manifest is rewritten only when it finishes)."""
+    steps = list(manifest.get("steps", []))
+    if manifest.get("complete"):
+        return steps
+    logged = step_log(directory)
+    known = {s.get("index") for s in steps}
+    return steps + [e["step"] for e in logged if e["step"]["index"] not in known]
+
+
 def parse_manifest(data: Mapping, source: str) -> tuple[dict, list[StepRecord]]:
     """Validate a manifest dict; returns (fields, step records)."""
     for key in ("unit", "site", "sample_rate_hz", "steps"):
@@ -502,6 +536,8 @@ def load_session(directory: str | Path, require_complete: bool = True, lazy: boo
     """
     directory = Path(directory)
     data = _load_manifest(directory)
+    if isinstance(data.get("steps"), list):
+        data["steps"] = recorded_steps(directory, data)
     mpath = directory / "session.json"
     fields, steps = parse_manifest(data, str(mpath))
     spath = samples_file(directory)

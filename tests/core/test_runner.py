@@ -10,7 +10,7 @@ import numpy as np
 
 import pytest
 
-from workbench.session import load_session
+from workbench.session import load_session, recorded_steps
 
 RECORD = """
 import sys, types, numpy as np
@@ -28,7 +28,7 @@ record_procedure(proc, spec, draw_unit(spec, 5), load_rig_config("sim"), 5, Path
 
 def _recorded_steps(out) -> int:
     try:
-        return len(json.loads((out / "session.json").read_text())["steps"])
+        return len(recorded_steps(out, json.loads((out / "session.json").read_text())))
     except (FileNotFoundError, json.JSONDecodeError, KeyError):
         return 0
 
@@ -38,8 +38,8 @@ def test_killed_run_leaves_completed_steps_readable_and_resumes(tmp_path):
     env = {**os.environ, "PYTHONPATH": os.getcwd()}
     p = subprocess.Popen([sys.executable, "-c", RECORD, str(out)], env=env)
     deadline = time.time() + 120
-    # wait on the manifest, not on the part files: a part is written before the manifest
-    # names it, so a kill between the two leaves one more part than recorded steps
+    # wait on the recorded steps (manifest and step log), not on the part files: a part is written
+    # before the step log names it, so a kill between the two leaves one more part than recorded steps
     while time.time() < deadline and _recorded_steps(out) < 4:
         time.sleep(0.05)
     p.send_signal(signal.SIGKILL)
@@ -47,11 +47,11 @@ def test_killed_run_leaves_completed_steps_readable_and_resumes(tmp_path):
     manifest = json.loads((out / "session.json").read_text())
     if manifest.get("complete"):
         pytest.skip("the recording finished before it could be killed")
-    done = len(manifest["steps"])
+    done = len(recorded_steps(out, manifest))
     assert done >= 4
     partial = load_session(out, require_complete=False)
     assert len(partial.steps) == done and partial.samples["step"].max() == done - 1
-    # a kill between writing a step's part and naming it in the manifest leaves an orphan
+    # a kill between writing a step's part and naming it in the step log leaves an orphan
     # part for the next step; loading ignores it, resuming records that step again
     parts = out / "parts"
     orphan = parts / f"step_{done:05d}.parquet"
@@ -72,3 +72,30 @@ def test_killed_run_leaves_completed_steps_readable_and_resumes(tmp_path):
     uninterrupted = load_session(whole)
     cols = ["t", "step", "gx", "gy", "gz", "ax", "ay", "az", "temp", "table_angle"]
     assert np.array_equal(session.samples[cols].to_numpy(), uninterrupted.samples[cols].to_numpy())
+
+
+def test_manifest_written_twice_and_a_torn_log_line_ignored(tmp_path, monkeypatch):
+    from workbench import runner
+    from workbench.sequence import Hold, Sequence
+    from workbench.sim import simulate
+
+    writes = []
+    real = runner.write_manifest
+    monkeypatch.setattr(runner, "write_manifest", lambda d, m: (writes.append(len(m["steps"])), real(d, m)))
+    seq = Sequence("demo", [Hold("z-down", dwell_s=2.0), Hold("x-up", dwell_s=2.0), Hold("y-up", dwell_s=2.0)])
+    out = tmp_path / "s"
+    session, _ = simulate(seq, "industrial_mems", 3, out_dir=out)
+    assert writes == [0, 3]  # the plan, then the complete session: not once per step
+    assert not (out / "steps.jsonl").exists() and not (out / "parts").exists()
+    again = load_session(out)
+    assert again.samples.equals(session.samples) and again.samples_sha256() == session.samples_sha256()
+    # an interrupted recording: two logged steps and a third line cut short by the kill
+    part = tmp_path / "p"
+    monkeypatch.setattr(runner.Recording, "finish", lambda self: None)
+    simulate(seq, "industrial_mems", 3, out_dir=part)
+    lines = (part / "steps.jsonl").read_text().splitlines()
+    (part / "steps.jsonl").write_text("\n".join(lines[:2]) + "\n" + lines[2][:40])
+    partial = load_session(part, require_complete=False)
+    assert [s.index for s in partial.steps] == [0, 1]
+    assert partial.samples.equals(session.samples[session.samples["step"].isin([-1, 0, 1]) & (
+        session.samples["t"] <= partial.steps[-1].t_end + 1e-9)].reset_index(drop=True))

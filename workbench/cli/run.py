@@ -70,10 +70,10 @@ def _interruptible(session_dir: Path, procedure_name: str):
     try:
         yield
     except KeyboardInterrupt:
-        import json as _json
+        from workbench.session import recorded_steps
 
         manifest = session_dir / "session.json"
-        done = len(_json.loads(manifest.read_text())["steps"]) if manifest.exists() else 0
+        done = len(recorded_steps(session_dir, json.loads(manifest.read_text()))) if manifest.exists() else 0
         err.print(f"stopped: {done} step(s) complete and readable in {session_dir}; the rig was made safe "
                   f"(table stopped, chamber to its safe setpoint). Continue with: workbench run {procedure_name} "
                   f"--resume {session_dir}", highlight=False, soft_wrap=True)
