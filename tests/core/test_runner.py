@@ -77,7 +77,7 @@ def test_killed_run_leaves_completed_steps_readable_and_resumes(tmp_path):
 def test_manifest_written_twice_and_a_torn_log_line_ignored(tmp_path, monkeypatch):
     from workbench import runner
     from workbench.sequence import Hold, Sequence
-    from workbench.sim import simulate
+    from workbench.jobs import simulate
 
     writes = []
     real = runner.write_manifest
