@@ -30,7 +30,7 @@ from workbench.errors import AnalysisError
 from workbench.nav.compensate import check_calibration, compensate, imu_samples, process_noise
 from workbench.nav.land_ins import GradeErrors, LandInsConfig, run_land_ins
 from workbench.nav.lns import track_length
-from workbench.nav.road import gps_fixes
+from workbench.nav.road import gps_fixes, thin
 from workbench.options import Option, check_options, defaults
 from workbench.procedure import ProcedureResult
 from workbench.session import Session
@@ -139,10 +139,8 @@ def analyze(session: Session, calibration: CalibrationSet | None = None, **optio
                                  "sigma_e": res.sigma[:, 1], **blocks[mode].pop("_series")}
     if gps is not None:
         payload["gps"] = gps[["t", "lat", "lon"]].to_dict("list")
-    from procedures.lns_dead_reckoning import _thin
-
-    series = {m: {"t": _thin(r["t"]), "sigma_m": _thin(np.hypot(r["sigma_n"], r["sigma_e"])),
-                  **({"t_ref": _thin(r["t_ref"]), "error_m": _thin(r["error_m"])} if "error_m" in r else {})}
+    series = {m: {"t": thin(r["t"]), "sigma_m": thin(np.hypot(r["sigma_n"], r["sigma_e"])),
+                  **({"t_ref": thin(r["t_ref"]), "error_m": thin(r["error_m"])} if "error_m" in r else {})}
               for m, r in payload["runs"].items()}
     result = {**blocks, "series": series, "calibration_id": calibration.id, "states": int(o["states"]),
               "gain_scaling": {"on": bool(o["gain_scaling"]), "c0": o["c0"], "c1": o["c1"]}}

@@ -40,7 +40,7 @@ from workbench.earth import radii
 from workbench.errors import AnalysisError
 from workbench.nav.compensate import check_calibration, compensate, imu_samples, process_noise
 from workbench.nav.lns import LnsConfig, error_statistics, run_lns, track_length
-from workbench.nav.road import gps_fixes, odometer_distance
+from workbench.nav.road import gps_fixes, odometer_distance, thin
 from workbench.options import Option, check_options, defaults
 from workbench.procedure import ProcedureResult
 from workbench.session import Session
@@ -203,13 +203,6 @@ def analyze(session: Session, calibration: CalibrationSet | None = None, **optio
     return ProcedureResult(NAME, result, None, payload, _summary(blocks), warnings)
 
 
-def _thin(x, n: int = 300) -> list:
-    """At most ``n`` evenly spaced values of ``x`` (for the stored result the dashboard draws from)."""
-    x = np.asarray(x, float)
-    idx = np.unique(np.linspace(0, len(x) - 1, min(n, len(x))).astype(int)) if len(x) else np.zeros(0, int)
-    return [None if not np.isfinite(v) else float(v) for v in x[idx]]
-
-
 def _series(payload: dict) -> dict:
     """Thinned series stored in result.json: error % vs distance per run, SF estimate vs time,
     the calibrated 5-state track and the GPS track (lat, lon in degrees)."""
@@ -218,13 +211,13 @@ def _series(payload: dict) -> dict:
         d = np.asarray(r["distance_m"])
         with np.errstate(divide="ignore", invalid="ignore"):
             pct = np.where(d > 0, 100 * np.asarray(r["error_m"]) / d, np.nan)
-        out["error_pct"][name] = {"distance_m": _thin(d), "pct": _thin(pct)}
+        out["error_pct"][name] = {"distance_m": thin(d), "pct": thin(pct)}
         if name.endswith("/sf_state"):
-            out["odo_scale"][name] = {"t": _thin(r["t_all"]), "value": _thin(r["odo_scale"])}
+            out["odo_scale"][name] = {"t": thin(r["t_all"]), "value": thin(r["odo_scale"])}
     track = payload["runs"]["calibrated/sf_state"]
-    out["track"] = {"lat_deg": _thin(np.degrees(track["lat"]), 500), "lon_deg": _thin(np.degrees(track["lon"]), 500)}
+    out["track"] = {"lat_deg": thin(np.degrees(track["lat"]), 500), "lon_deg": thin(np.degrees(track["lon"]), 500)}
     gps = payload["gps"]
-    out["gps"] = {"lat_deg": _thin(np.degrees(gps["lat"]), 500), "lon_deg": _thin(np.degrees(gps["lon"]), 500)}
+    out["gps"] = {"lat_deg": thin(np.degrees(gps["lat"]), 500), "lon_deg": thin(np.degrees(gps["lon"]), 500)}
     return out
 
 

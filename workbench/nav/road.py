@@ -5,7 +5,7 @@ distance ``odo_distance`` (m, a samples column) and GPS fixes in ``gps.parquet``
 ``gps.csv``): ``t`` s (the samples' clock), ``lat``, ``lon`` rad, ``h`` m, optional ``vn``, ``ve``,
 ``vd`` m/s. Imported drive recordings provide the same files.
 
-Public: ``GPS_FILE``, :func:`gps_fixes`, :func:`odometer_distance`.
+Public: ``GPS_FILE``, :func:`gps_fixes`, :func:`odometer_distance`, :func:`thin`.
 """
 
 from __future__ import annotations
@@ -53,3 +53,11 @@ def odometer_distance(session: Session) -> np.ndarray:
     if session.samples is None or "odo_distance" not in session.samples.columns:
         raise SessionError(f"{session.name}: samples have no odo_distance column (odometer distance, m)")
     return session.samples["odo_distance"].to_numpy(float)
+
+
+def thin(x, n: int = 300) -> list:
+    """At most ``n`` evenly spaced values of ``x`` as a JSON list (None for non-finite values): the
+    series a stored result keeps for the dashboard."""
+    x = np.asarray(x, float)
+    idx = np.unique(np.linspace(0, len(x) - 1, min(n, len(x))).astype(int)) if len(x) else np.zeros(0, int)
+    return [None if not np.isfinite(v) else float(v) for v in x[idx]]

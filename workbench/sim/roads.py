@@ -2,7 +2,8 @@
 
 * :func:`thesis_drive`: a drive like the thesis' PC simulation (shared/seeds/000_... sec. 2.4.2,
   Fig. 2.15-2.20): a rest for the initialisation, ~50 minutes of mixed road (straights of
-  150-1500 m at 8-20 m/s, turns of 45-120° either way at 6-10 °/s, short stops, gentle slopes), a five-minute
+  150-1500 m at 8-18 m/s, turns of 45-100° at 6-10 °/s that keep the road heading
+  within ~±100° of its start direction, short stops, gentle slopes), a five-minute
   stop near 3000 s (where the odometer scale factor steps by +4 %), then ~50 more minutes; the
   GPS is lost a few minutes after the restart (``GPS_LOSS_S``), leaving ~28 km in ~45 min.
   The thesis does not give its road (it replays a van test): this one is drawn from a seed.
@@ -28,13 +29,17 @@ def _random_legs(rng: np.random.Generator, duration_s: float) -> list[dict]:
     """Mixed road legs of about ``duration_s`` s (straights, turns, occasional short stops)."""
     legs: list[dict] = []
     total = 0.0
+    heading = float(rng.uniform(-30.0, 30.0))  # deg, relative to the start direction
     while total < duration_s:
         speed = float(rng.uniform(8.0, 18.0))
         length = float(rng.uniform(150.0, 1500.0))
         legs.append({"kind": "straight", "length_m": length, "speed_mps": speed,
                      "slope_deg": float(np.round(rng.normal(0.0, 1.5), 1))})
         total += length / speed
-        angle = float(rng.choice([-1, 1]) * rng.uniform(45.0, 120.0))
+        # turn back towards the drive's general direction: a road that gets somewhere (the van
+        # tests' displacement is close to their distance), not a random walk
+        angle = float(-np.sign(heading + 1e-9) * rng.uniform(45.0, 100.0))
+        heading += angle
         rate = float(rng.uniform(6.0, 10.0))
         turn_speed = min(speed, 9.0)
         legs.append({"kind": "straight", "duration_s": 10.0, "speed_mps": turn_speed, "label": "slow down"})
