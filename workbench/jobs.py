@@ -46,14 +46,16 @@ def open_rig(cfg: RigConfig, truth, seed: int, state=None):
 
 
 def simulate(sequence, unit, seed: int, out_dir: str | Path | None = None, rig=None, site=None,
-             procedure: str | None = None, progress=None):
+             procedure: str | None = None, progress=None, imperfections=None):
     """Record ``sequence`` on the simulated rig; returns ``(Session, UnitTruth)``.
 
     ``unit``: a grade name or fixture path, a ``SensorSpec`` or a ``UnitTruth`` (drawn from the
     spec with ``seed`` when not already a truth). ``rig``: a ``RigConfig``, a rig-config name or
     path, or None for ``fixtures/rigs/sim.yaml``. ``site``: a ``workbench.session.Site`` that
     replaces the rig's site. ``out_dir``: a folder for the session (with ``truth.json``), or None
-    to keep it in memory. The same ``seed`` gives the same samples.
+    to keep it in memory. The same ``seed`` gives the same samples. ``imperfections``: a
+    :class:`workbench.sim.imperfections.Imperfections` (warm-up, turn-on repeatability, noise vs
+    temperature), or None for a unit that follows its model exactly.
     """
     from workbench.grades import SensorSpec, UnitTruth, draw_unit, load_spec
     from workbench.sim import write_truth
@@ -67,7 +69,7 @@ def simulate(sequence, unit, seed: int, out_dir: str | Path | None = None, rig=N
     cfg = rig if isinstance(rig, RigConfig) else load_rig_config(rig or "sim")
     if site is not None:
         cfg = replace(cfg, site=site)
-    sim = SimRig(cfg, truth, seed)
+    sim = SimRig(cfg, truth, seed, imperfections=imperfections)
     rec = start(sequence, sim, Unit(truth.serial, truth.model), procedure or sequence.name,
                 Path(out_dir) if out_dir is not None else None, extra={"seed": int(seed)})
     if out_dir is not None:

@@ -35,7 +35,7 @@ class SimRig:
 
     driver = "sim"
 
-    def __init__(self, config: RigConfig, truth, seed: int, state: RigState | None = None):
+    def __init__(self, config: RigConfig, truth, seed: int, state: RigState | None = None, imperfections=None):
         from workbench.sim.sensor import VirtualIMU
 
         self.config = config
@@ -44,7 +44,7 @@ class SimRig:
         self.truth = truth
         self.fs = float(truth.sample_rate_hz)
         self.seed = int(seed)
-        self.imu = VirtualIMU(truth, seed)
+        self.imu = VirtualIMU(truth, seed, imperfections)
         self.rng = np.random.default_rng([self.seed, 7])
         c0 = config.chamber.initial_c
         self.state = state or RigState(air_c=c0, unit_c=c0, chamber_target_c=c0,

@@ -9,6 +9,10 @@ For each triad, in this order (all SI, body frame)::
     y      = quantize(y)                          integrated-output quantization, then output LSB
     y      = clip(y, -range, +range)              saturation at the full scale
 
+With :class:`~workbench.sim.imperfections.Imperfections` (off by default), before the noise:
+``clean = (I + dM_on) clean + b_on + b_w exp(-t / tau)`` (turn-on scale factor and bias, warm-up
+transient), and the noise is scaled by ``1 + c (T - t_ref)``.
+
 The unit's thermometer reads ``T + N(0, temp_sensor_noise_c²)``.
 
 :class:`VirtualIMU` is stateful: consecutive :meth:`VirtualIMU.measure` calls continue the
@@ -53,10 +57,17 @@ class VirtualIMU:
     ----------
     truth : UnitTruth, the unit's true error model, noise terms and ranges
     seed : seed of the noise (independent of the seed the unit was drawn with)
+    imperfections : :class:`~workbench.sim.imperfections.Imperfections` or None (none)
     """
 
-    def __init__(self, truth: UnitTruth, seed: int) -> None:
+    def __init__(self, truth: UnitTruth, seed: int, imperfections=None) -> None:
         self.truth = truth
+        self.imperfections = imperfections
+        self._k = 0  # samples produced since power-on
+        if imperfections is not None:
+            self._on_bias, self._on_scale = imperfections.draw(tuple(truth.triads), seed)
+            self._warm = imperfections.vector("warm_up_bias", tuple(truth.triads))
+            self._noise_tc = imperfections.vector("noise_temp_coeff", tuple(truth.triads))
         self.dt = 1.0 / truth.sample_rate_hz
         noise_seed, temp_seed = np.random.SeedSequence(seed).spawn(2)
         noises = [truth.noise_of(t) for t in truth.triads]
@@ -116,7 +127,15 @@ class VirtualIMU:
                 hyst, play = self._play[name]
                 out = out + 0.5 * play.branch(temp_c)[:, None] * hyst.gap
             clean.append(out)
-        y = np.hstack(clean) + self._noise.generate(n)
+        clean = np.hstack(clean)
+        noise = self._noise.generate(n)
+        imp = self.imperfections
+        if imp is not None:
+            t = (self._k + np.arange(n)) * self.dt
+            clean = clean * (1.0 + self._on_scale) + self._on_bias + np.exp(-t / imp.warm_up_tau_s)[:, None] * self._warm
+            noise = noise * (1.0 + np.outer(temp_c - imp.noise_t_ref_c, self._noise_tc))
+        self._k += n
+        y = clean + noise
         y = round_to_resolution(self._quantizer.apply(y), self._resolution)
         y = np.clip(y, -self._range, self._range)
         return y, temp_c + self.truth.temp_sensor_noise_c * self._temp_rng.standard_normal(n)
@@ -126,7 +145,7 @@ class VirtualIMU:
         continue exactly where an interrupted one stopped (:meth:`restore`)."""
         return {"noise": self._noise.state(), "quantizer": self._quantizer.state(),
                 "temp_rng": self._temp_rng.bit_generator.state,
-                "play": {t: play.point for t, (_, play) in self._play.items()}}
+                "play": {t: play.point for t, (_, play) in self._play.items()}, "k": self._k}
 
     def restore(self, state: dict) -> None:
         """Continue from a :meth:`state` of a VirtualIMU of the same unit."""
@@ -136,5 +155,6 @@ class VirtualIMU:
             self._temp_rng.bit_generator.state = state["temp_rng"]
             for triad, point in state["play"].items():
                 self._play[triad][1].point = point
+            self._k = int(state.get("k", 0))
         except (KeyError, ValueError, TypeError) as exc:
             raise WorkbenchError(f"VirtualIMU.restore: state does not match unit {self.truth.serial} ({exc})") from None
