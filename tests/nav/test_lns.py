@@ -135,3 +135,19 @@ def test_procedure_reports_seed_style_statistics(lns_drive, make_calibration):
     # without the at-rest bias the +20 °/h set error turns the heading by 20 °/h over the 6 minutes
     assert res.result["wrong_bias"]["sf_state"]["error_pct"]["max"] > cal["sf_state"]["error_pct"]["max"]
     assert set(proc.figures(res)) == {"trajectory", "error_pct", "odo_scale"}
+
+
+def test_a_bad_gps_file_is_a_one_line_error(tmp_path, lns_drive):
+    import shutil
+
+    from workbench.errors import SessionError
+
+    session, _, _ = lns_drive
+    copy = tmp_path / "drive"
+    shutil.copytree(session.path, copy)
+    gps = gps_fixes(session)
+    gps.loc[3, "lat"] = np.nan
+    (copy / "gps.parquet").unlink()
+    gps.to_csv(copy / "gps.csv", index=False)
+    with pytest.raises(SessionError, match=r"gps.csv: column lat: NaN or infinite value at row 3"):
+        gps_fixes(load_session(copy))
