@@ -38,9 +38,8 @@ from pathlib import Path
 
 import numpy as np
 from scipy.optimize import nnls
-from scipy.stats import chi2
 
-from workbench.analysis.allan_ci import DeviationCI
+from workbench.analysis.allan_ci import DeviationCI, chi2_ppf
 
 TERMS = ("quantization", "white", "bias_instability", "rrw", "rate_ramp")
 FLICKER = 2.0 * np.log(2.0) / np.pi  # AVAR per B^2; ADEV floor 0.664 B
@@ -154,7 +153,7 @@ def profile_interval(a: np.ndarray, avar: np.ndarray, edf: np.ndarray, k: int, f
     """
     from scipy.optimize import brentq
 
-    limit = d_min + chi2.ppf(level, 1)
+    limit = d_min + chi2_ppf(level, 1)
     t_hat = float(full[k])
 
     def excess(t: float) -> float:
@@ -190,7 +189,7 @@ def _select(a: np.ndarray, avar: np.ndarray, edf: np.ndarray, full: np.ndarray) 
             theta, _ = _irls(a, avar, edf, rest)
             rises.append((deviance(a, avar, edf, theta) - d_cur, k))
         rise, k = min(rises)
-        if rise >= chi2.ppf(0.95, 1):
+        if rise >= chi2_ppf(0.95, 1):
             break
         cols.remove(k)
         d_cur += rise

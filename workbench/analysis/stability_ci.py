@@ -23,9 +23,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import chi2
 
-from workbench.analysis.allan_ci import edf_greenhall, noise_id_decimated
+from workbench.analysis.allan_ci import chi2_ppf, edf_greenhall, noise_id_decimated
 from workbench.analysis.stability import Stability
 
 MIN_POINTS_LAG1 = 30  # decimated points for the lag-1 method (Riley & Greenhall: reliable from ~30)
@@ -132,8 +131,8 @@ def intervals(curve: Stability, x: np.ndarray, level: float = 0.95, alpha: np.nd
         edf[k] = edf_of(stat, int(alpha[k]), int(curve.m[k]), curve.n_phase, int(curve.n[k]) if gaps else None)
     edf = np.maximum(edf, 1e-3)
     q = (1.0 - level) / 2.0
-    lo = curve.dev * np.sqrt(edf / chi2.ppf(1.0 - q, edf))
-    hi = curve.dev * np.sqrt(edf / chi2.ppf(q, edf))
+    lo = curve.dev * np.sqrt(edf / chi2_ppf(1.0 - q, edf))
+    hi = curve.dev * np.sqrt(edf / chi2_ppf(q, edf))
     return StabilityCI(curve, alpha, edf, lo, hi, level)
 
 

@@ -136,7 +136,7 @@ def curves_frame(an: AllanAnalysis) -> pd.DataFrame:
 
 def _print_terms(an: AllanAnalysis) -> None:
     from workbench.analysis.allan_fit import TERMS
-    from workbench.plots.allan import term_text
+    from workbench.analysis.allan_terms import term_text
 
     unit_note = {"gyro": "gyro, rad/s in", "accel": "accel, m/s^2 in"}.get(an.quantity, "SI in")
     t = Table("column", *TERMS, "read-off N @1s", "read-off B min/0.664",

@@ -18,26 +18,10 @@ import numpy as np  # noqa: E402
 
 from workbench import units  # noqa: E402
 from workbench.analysis.allan_fit import TERMS, AllanAnalysis, basis  # noqa: E402
+from workbench.analysis.allan_terms import term_text  # noqa: E402
 
 # display unit of the ADEV axis and of each term, per quantity (None = SI of the input)
 DEV_UNIT = {"gyro": "deg/h", "accel": "ug", None: "1"}
-TERM_UNITS = {
-    "gyro": {"quantization": "arcsec", "white": "deg/sqrt(h)", "bias_instability": "deg/h", "rrw": "deg/h/sqrt(h)",
-             "rate_ramp": "deg/h/h"},
-    "accel": {"quantization": "m/s", "white": "ug/sqrt(Hz)", "bias_instability": "ug", "rrw": "m/s/h/sqrt(h)",
-              "rate_ramp": "m/s^3"},
-}
-TERM_LABELS = {"quantization": "Q", "white": "N", "bias_instability": "B", "rrw": "K", "rate_ramp": "R"}
-
-
-def term_text(quantity: str | None, term: str, value_si: float) -> str:
-    """A term's value in its lab unit with the label (``'N 0.201 °/√h'``)."""
-    unit = TERM_UNITS.get(quantity, {}).get(term)
-    if unit is None or not np.isfinite(value_si):
-        return f"{TERM_LABELS[term]} {value_si:.4g}" if np.isfinite(value_si) else f"{TERM_LABELS[term]} n/o"
-    return f"{TERM_LABELS[term]} {units.to_unit(value_si, unit):.3g} {units.label(unit)}"
-
-
 def plot_triads(analyses: Mapping[str, AllanAnalysis]) -> plt.Figure:
     """One log-log panel per triad (``{"gyro": ..., "accel": ...}``)."""
     fig, axes = plt.subplots(1, len(analyses), figsize=(6.2 * len(analyses), 4.8), squeeze=False)
