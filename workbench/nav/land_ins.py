@@ -19,10 +19,15 @@ metres):
 
 Measurements (sequential scalar updates with the M-estimator gain scaling, eq. 46-47):
 * NHC (eq. 24-30): the lateral and vertical platform velocity are zero,
-  ``v^p = C_b^p C_n^b v^n - C_b^p [ω_nb^b×] l`` (eq. 20), rows 2-3 of the Jacobian of eq. 28-29:
-  ``H = C_b^p C_n^b [0, I, -[v^n×]... ]`` in this module's convention (derived below);
-* ZUPT (eq. 31-34): ``z = -v̂^n``, ``H = [0 I 0 ...]`` (sign of this convention);
-* ZARUPT (eq. 35-40): the moving average of the gyro rotated into NED minus the Earth rate is zero.
+  ``v^p = C_b^p C_n^b v^n - C_b^p [ω_nb^b×] C_p^b l^p`` (eq. 20), rows 2-3 of the Jacobian of eq.
+  28-29 in this module's convention (:func:`nhc_jacobian`);
+* ZUPT (eq. 31-34): ``z = v̂^n``, ``H = [0 I 0 ...]``;
+* ZARUPT (eq. 35-40): the moving average of the compensated gyro rotated into NED minus the Earth
+  rate is zero: ``z = Ĉ ω̄ - ω_ie``, ``H = [0, 0, -[ω_ie×], 0, C, 0]``.
+
+The innovation ``z`` is always the prediction minus the measurement, so that ``z = H δx + noise``
+and the estimate ``δx̂ = K z`` is subtracted from the solution (the paper writes the same with the
+opposite sign of both ``z`` and ``H``, eq. 25, 33, 36).
 
 Validity (eq. 41-45): static when the moving average of |gyro - Earth rate| is below
 ``xi_gyro`` (41-42), the INS speed is below ``xi_speed`` times its covariance sigma (43), and the

@@ -228,7 +228,7 @@ def generate(legs: Sequence[Leg], sample_rate_hz: float, lat0: float, lon0: floa
     dt = 1.0 / sample_rate_hz
     n = int(round(starts[-1] * sample_rate_hz))
     t = np.arange(n) * dt
-    v, vd1, vd2 = _channel(legs, "speed", t, starts, limits.accel, limits.jerk, 0.0)
+    v, vd1, _ = _channel(legs, "speed", t, starts, limits.accel, limits.jerk, 0.0)
     r, rd1, rd2 = _channel(legs, "yaw_rate", t, starts, limits.yaw_accel, limits.yaw_jerk, 0.0)
     th, thd1, thd2 = _channel(legs, "slope", t, starts, limits.pitch_rate, limits.pitch_accel, 0.0)
     v = np.maximum(v, 0.0)
