@@ -87,3 +87,17 @@ def test_cli_budget(capsys):
     assert "exactly one of --set and --grade" in capsys.readouterr().err
     assert main(["budget", "reference-facility", "--grade", "inav_fms", "--scenario", "hover"]) == 2
     assert "--scenario hover: unknown" in capsys.readouterr().err
+
+
+def test_imu_errors_from_a_calibration_set():
+    # the set's noise block (ARW, VRW, bias instability) and its bias 1-sigma, as the budget reads them
+    from tests.nav.conftest import CAL_ERRORS, calibration_from_truth
+    from workbench.grades import draw_unit
+
+    truth = draw_unit(load_spec("imu700ca200"), 3)
+    imu = rf.ImuErrors.from_set(calibration_from_truth(truth))
+    np.testing.assert_allclose(imu.gyro_white, truth.noise_of("gyro").white)
+    np.testing.assert_allclose(imu.accel_white, truth.noise_of("accel").white)
+    np.testing.assert_allclose(imu.gyro_bias_instability, truth.noise_of("gyro").bias_instability)
+    np.testing.assert_allclose(imu.gyro_bias, CAL_ERRORS["gyro"][0])
+    assert imu.source.startswith("calibration set ")
