@@ -1,0 +1,209 @@
+"""Reading sensor-grade fixtures (``fixtures/units/*.yaml``): lab-unit keys to SI, one-line errors.
+
+:func:`load_spec` (a grade name or a fixture path -> :class:`~workbench.grade_types.SensorSpec`)
+and :func:`grade_names`. A YAML key carries its lab unit (``bias_deg_per_h``, ``arw_deg_per_sqrt_h``,
+``scale_factor_ppm``, ...; the table of units per physical dimension is here); docs/grades.md
+lists the keys.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from workbench.grade_types import AXES, FIXTURES, Hysteresis, NoiseSpec, SensorSpec, SpecError, TRIADS, TriadSpec
+from workbench.units import DEG, G0, HOUR
+
+
+# ---------------------------------------------------------------------------- lab units
+_RT_H = np.sqrt(HOUR)
+_QUANTITY = {"gyro": "rate", "accel": "accel", "mag": "field"}
+# SI value of one lab unit, per physical dimension; a YAML key is ``<term>_<unit>``.
+_UNITS: dict[str, dict[str, float]] = {
+    "rate": {"deg_per_h": DEG / HOUR, "deg_per_s": DEG, "rad_per_s": 1.0},
+    "accel": {"mg": G0 * 1e-3, "ug": G0 * 1e-6, "g": G0, "m_per_s2": 1.0, "m_per_s_per_h": 1.0 / HOUR},
+    "field": {"ut": 1.0, "nt": 1e-3, "mgauss": 0.1, "gauss": 100.0},
+    "rate/rthz": {"deg_per_sqrt_h": DEG / _RT_H, "deg_per_h_per_sqrt_hz": DEG / HOUR,
+                  "deg_per_s_per_sqrt_hz": DEG, "rad_per_s_per_sqrt_hz": 1.0},
+    "accel/rthz": {"ug_per_sqrt_hz": G0 * 1e-6, "mg_per_sqrt_hz": G0 * 1e-3, "m_per_s_per_sqrt_h": 1.0 / _RT_H,
+                   "m_per_s2_per_sqrt_hz": 1.0},
+    "field/rthz": {"ut_per_sqrt_hz": 1.0, "nt_per_sqrt_hz": 1e-3},
+    "rate/rts": {"deg_per_h_per_sqrt_h": DEG / HOUR / _RT_H, "rad_per_s_per_sqrt_s": 1.0},
+    "accel/rts": {"m_per_s_per_h_per_sqrt_h": 1.0 / HOUR / _RT_H, "ug_per_sqrt_s": G0 * 1e-6,
+                  "m_per_s2_per_sqrt_s": 1.0},
+    "field/rts": {"ut_per_sqrt_s": 1.0},
+    "rate*s": {"rad": 1.0, "urad": 1e-6, "arcsec": DEG / 3600.0},
+    "accel*s": {"m_per_s": 1.0, "mm_per_s": 1e-3},
+    "field*s": {"ut_s": 1.0},
+    "ratio": {"ppm": 1e-6, "pct": 1e-2, "mrad": 1e-3, "urad": 1e-6},
+    "fs": {"ppm_fs": 1e-6, "pct_fs": 1e-2},
+    "rate/accel": {"deg_per_h_per_g": DEG / HOUR / G0, "deg_per_s_per_g": DEG / G0, "rad_per_s_per_m_per_s2": 1.0},
+}
+_DIM_LABEL = {
+    "rate": "angular-rate", "accel": "acceleration", "field": "magnetic-field",
+    "rate/rthz": "rate noise density", "accel/rthz": "acceleration noise density",
+    "field/rthz": "field noise density", "rate/rts": "rate random walk", "accel/rts": "acceleration random walk",
+    "field/rts": "field random walk", "rate*s": "angle", "accel*s": "velocity", "field*s": "field x time",
+    "ratio": "dimensionless", "fs": "fraction-of-full-scale", "rate/accel": "rate per acceleration",
+}
+# term -> dimension template ('q' = the triad's quantity); noise aliases map to 'white'
+_TERMS = {
+    "range": "q", "bias": "q", "bias_instability": "q", "resolution": "q", "bias_hysteresis": "q",
+    "bias_temp_poly": "q", "white": "q/rthz", "rrw": "q/rts", "quantization": "q*s",
+    "scale_factor": "ratio", "misalignment": "ratio", "scale_temp_poly": "ratio",
+    "nonlinearity": "fs", "g_sensitivity": "rate/accel",
+}
+_ALIASES = {"arw": "white", "vrw": "white", "noise": "white"}
+_PLAIN = {"hysteresis_width_c", "sensing_axes"}  # triad keys without a lab unit
+
+
+# ---------------------------------------------------------------------------- loading
+def _resolve(name_or_path: str | Path) -> Path:
+    """A grade name -> its fixture; a bare file name not found here -> the fixtures folder."""
+    candidate = Path(name_or_path)
+    if candidate.parent != Path(".") or candidate.is_file():
+        return candidate
+    return FIXTURES / (candidate.name if candidate.suffix in (".yaml", ".yml") else f"{candidate.name}.yaml")
+
+
+def grade_names() -> list[str]:
+    """Names of the grades shipped in ``fixtures/units``."""
+    return sorted(p.stem for p in FIXTURES.glob("*.yaml"))
+
+
+def load_spec(name_or_path: str | Path) -> SensorSpec:
+    """Load a grade: a name (``"industrial_mems"`` -> ``fixtures/units/industrial_mems.yaml``)
+    or a path to a YAML file. Lab units in the keys are converted to SI.
+
+    Raises :class:`SpecError` naming the file and the field for a missing file, bad YAML,
+    an unknown key or unit, a wrong shape or a non-physical value.
+    """
+    path = _resolve(name_or_path)
+    if not path.is_file():
+        known = ", ".join(grade_names())
+        raise SpecError(f"{path}: no such sensor-grade file (known grades: {known})")
+    try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        where = getattr(exc, "problem_mark", None)
+        line = f" line {where.line + 1}" if where is not None else ""
+        raise SpecError(f"{path}:{line} invalid YAML ({getattr(exc, 'problem', exc)})") from None
+    if not isinstance(data, Mapping):
+        raise SpecError(f"{path}: expected a mapping of grade fields at the top level")
+    return _parse_spec(data, path)
+
+
+def _number(value, where: str, positive: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
+        raise SpecError(f"{where}: expected a number, got {value!r}")
+    if positive and value <= 0:
+        raise SpecError(f"{where}: must be positive, got {value!r}")
+    return float(value)
+
+
+def _axis_values(value, where: str) -> np.ndarray:
+    """A scalar (all axes) or a list of 3 numbers -> (3,), non-negative."""
+    items = value if isinstance(value, list) else [value]
+    if len(items) not in (1, 3):
+        raise SpecError(f"{where}: expected a number or a list of 3 (x, y, z), got {len(items)} values")
+    arr = np.array([_number(v, where) for v in items])
+    if np.any(arr < 0):
+        raise SpecError(f"{where}: a 1-sigma spread or noise term cannot be negative")
+    return np.broadcast_to(arr, (3,)).copy()
+
+
+def _poly_values(value, where: str) -> np.ndarray:
+    """A list over powers 1..K, each a number or a list of 3 -> (3, K)."""
+    if not isinstance(value, list) or not value:
+        raise SpecError(f"{where}: expected a list of coefficients for powers 1, 2, ... of (T - t_ref_c)")
+    return np.stack([_axis_values(v, f"{where}[{k}]") for k, v in enumerate(value)], axis=1)
+
+
+def _split_key(key: str, triad: str, where: str) -> tuple[str, float]:
+    """``'bias_deg_per_h'`` -> ('bias', SI factor), checking the unit's dimension."""
+    quantity = _QUANTITY[triad]
+    for term in sorted({*_TERMS, *_ALIASES}, key=len, reverse=True):
+        if not key.startswith(term + "_"):
+            continue
+        unit = key[len(term) + 1:]
+        canonical = _ALIASES.get(term, term)
+        dim = _TERMS[canonical].replace("q", quantity)
+        table = _UNITS[dim]
+        if unit not in table:
+            raise SpecError(f"{where}: unit {unit!r} is not a {_DIM_LABEL[dim]} unit for {canonical} "
+                            f"(use one of: {', '.join(table)})")
+        return canonical, table[unit]
+    raise SpecError(f"{where}: unknown key (terms: {', '.join(sorted({*_TERMS, *_ALIASES, *_PLAIN}))})")
+
+
+def _parse_triad(data, triad: str, path: Path) -> TriadSpec:
+    if not isinstance(data, Mapping):
+        raise SpecError(f"{path}: {triad}: expected a mapping of error terms")
+    values: dict[str, np.ndarray | float] = {}
+    for key, raw in data.items():
+        where = f"{path}: {triad}.{key}"
+        if key in _PLAIN:
+            continue
+        term, factor = _split_key(str(key), triad, where)
+        if term in values:
+            raise SpecError(f"{where}: {term} given twice")
+        if term == "range":
+            values[term] = _number(raw, where, positive=True) * factor
+        elif term.endswith("temp_poly"):
+            values[term] = _poly_values(raw, where) * factor
+        else:
+            values[term] = _axis_values(raw, where) * factor
+    if "range" not in values:
+        raise SpecError(f"{path}: {triad}: missing range (e.g. range_deg_per_s, range_g, range_ut)")
+    full_scale = values["range"]
+    noise = NoiseSpec(**{k: values.get(k, np.zeros(3)) for k in ("white", "bias_instability", "rrw",
+                                                                 "quantization", "resolution")})
+    hysteresis = None
+    if "bias_hysteresis" in values:
+        if "hysteresis_width_c" not in data:
+            raise SpecError(f"{path}: {triad}.hysteresis_width_c: required with bias_hysteresis")
+        hysteresis = Hysteresis(values["bias_hysteresis"],
+                                _number(data["hysteresis_width_c"], f"{path}: {triad}.hysteresis_width_c", True))
+    axes = data.get("sensing_axes", list(AXES))
+    if not isinstance(axes, list) or not axes or any(a not in AXES for a in axes):
+        raise SpecError(f"{path}: {triad}.sensing_axes: expected a list of x, y, z, got {axes!r}")
+    if "g_sensitivity" in values and triad != "gyro":
+        raise SpecError(f"{path}: {triad}.g_sensitivity: only a gyro has g-sensitivity")
+    return TriadSpec(
+        range=full_scale,
+        bias=values.get("bias", np.zeros(3)),
+        scale_factor=values.get("scale_factor", np.zeros(3)),
+        misalignment=values.get("misalignment", np.zeros(3)),
+        nonlinearity=values.get("nonlinearity", np.zeros(3)) / full_scale,
+        g_sensitivity=values.get("g_sensitivity"),
+        bias_temp_poly=values.get("bias_temp_poly", np.zeros((3, 0))),
+        scale_temp_poly=values.get("scale_temp_poly", np.zeros((3, 0))),
+        noise=noise, hysteresis=hysteresis, sensing_axes=tuple(AXES.index(a) for a in axes))
+
+
+_TOP = {"name", "description", "source", "notes", "sample_rate_hz", "t_ref_c", "thermal_time_constant_s",
+        "temp_sensor_noise_c", *TRIADS}
+
+
+def _parse_spec(data: Mapping, path: Path) -> SensorSpec:
+    unknown = sorted(set(map(str, data)) - _TOP)
+    if unknown:
+        raise SpecError(f"{path}: unknown field {unknown[0]!r} (fields: {', '.join(sorted(_TOP))})")
+    for key in ("name", "sample_rate_hz", "gyro", "accel"):
+        if key not in data:
+            raise SpecError(f"{path}: missing field {key!r}")
+    triads = tuple(t for t in TRIADS if t in data)
+    specs = {t: _parse_triad(data[t], t, path) for t in triads}
+    return SensorSpec(
+        name=str(data["name"]), description=str(data.get("description", "")), source=str(data.get("source", "")),
+        notes=str(data.get("notes", "")).strip(),
+        sample_rate_hz=_number(data["sample_rate_hz"], f"{path}: sample_rate_hz", positive=True),
+        triads=triads,
+        t_ref_c=_number(data.get("t_ref_c", 25.0), f"{path}: t_ref_c"),
+        thermal_time_constant_s=_number(data.get("thermal_time_constant_s", 600.0),
+                                        f"{path}: thermal_time_constant_s", positive=True),
+        temp_sensor_noise_c=_number(data.get("temp_sensor_noise_c", 0.0), f"{path}: temp_sensor_noise_c"),
+        specs=specs, path=path)
