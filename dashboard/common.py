@@ -519,11 +519,46 @@ def analyze_session(procedure: str, folder: Path, options: Mapping | None = None
     return _analyze(procedure, str(folder), folder_mtime(Path(folder)), json.dumps(dict(options or {}), sort_keys=True))
 
 
-def result_picker(procedure: str, key: str = "result") -> ProcedureResult | None:
-    """Everything an analysis page needs: pick a session of ``procedure``, set options, analyze.
+def stored_result(procedure: str, folder: Path) -> dict | None:
+    """The newest stored result (store row: ``result``, ``created``, ``calibration_id``) of the session in ``folder``."""
+    try:
+        session_id = json.loads((Path(folder) / "session.json").read_text()).get("id")
+        rows = store().list_results(procedure)
+    except (OSError, json.JSONDecodeError, WorkbenchError):
+        return None
+    return next((r for r in rows if r["session_id"] == session_id), None)
 
-    Returns the ProcedureResult, or None (with a readable message) when there is no session yet
-    or the analysis fails.
+
+def show_stored_result(procedure: str, folder: Path, row: dict) -> None:
+    """A stored result as it was computed: its summary, warnings, options and the figures drawn then."""
+    from workbench.stored import stored_figures, stored_options
+
+    doc = row["result"]
+    options = stored_options(folder, procedure, doc)
+    st.success(f"Stored result of {row['created']} (as computed then; nothing re-analysed)")
+    st.caption("Options it was computed with: " + (", ".join(f"{k} = {json.dumps(v)}" for k, v in options.items())
+                                                  if options else "the defaults" if options == {} else "not recorded"))
+    summary = [str(s) for s in doc.get("summary", [])]
+    if summary:
+        st.code("\n".join(summary), language=None)
+    for w in doc.get("warnings", []):
+        st.warning(str(w))
+    with st.expander("result.json"):
+        st.json(doc)
+    pngs = stored_figures(folder)
+    for png in pngs:
+        st.image(str(png), caption=png.stem.replace("_", " "))
+    if not pngs:
+        st.caption("No figures were stored with this result.")
+
+
+def result_picker(procedure: str, key: str = "result") -> ProcedureResult | None:
+    """What an analysis page needs: pick a session of ``procedure``; its stored result is shown as stored.
+
+    Re-analysis of a session with a stored result is an explicit button naming the options it
+    uses; a session without one (e.g. a folder typed in) is analysed with the options shown.
+    Neither stores anything. Returns the ProcedureResult of that analysis (None while the stored
+    result is shown, when there is no session yet or the analysis fails).
     """
     try:
         proc = registry.procedure(procedure)
@@ -531,17 +566,31 @@ def result_picker(procedure: str, key: str = "result") -> ProcedureResult | None
         st.info(f"Procedure {procedure!r} is not installed yet ({exc}).")
         return None
     folder = session_picker(procedure, key=f"{key}.session")
-    with st.expander("Analysis options"):
-        options = option_inputs(proc, key=f"{key}.options", stage="analysis")
     if folder is None:
         st.info(f"No {procedure} session yet: record one on the Run page or type a session folder.")
         return None
+    row = stored_result(procedure, folder)
+    if row is not None:
+        show_stored_result(procedure, folder, row)
+    with st.expander("Re-analyse (stores nothing)" if row is not None else "Analysis options", expanded=False):
+        options = option_inputs(proc, key=f"{key}.options", stage="analysis")
+        defaults = dict(getattr(proc, "DEFAULTS", {}))
+        changed = {k: v for k, v in options.items() if k not in defaults or defaults[k] != v}
+        text = "the defaults" + "".join(f", {k} = {json.dumps(v)}" for k, v in changed.items())
+        flag = f"{key}.reanalyse.{folder}"
+        if row is not None and st.button(f"Re-analyse with: {text}", key=f"{key}.reanalyse"):
+            st.session_state[flag] = True
+    if row is not None and not st.session_state.get(flag):
+        return None  # the stored result is what the page shows
     try:
         with st.spinner(f"Analysing {folder.name} ..."):
-            return analyze_session(procedure, folder, options)
+            result = analyze_session(procedure, folder, options)
     except Exception as exc:  # noqa: BLE001 - any failure of the analysis is shown, the page stays usable
         show_error(exc, f"{procedure} on {folder}")
         return None
+    st.info(f"{'Re-analysis' if row is not None else 'No stored result for this session: analysis'} of "
+            f"{folder.name} with {text} (not stored).")
+    return result
 
 
 def show_figures(result: ProcedureResult | Path) -> None:
@@ -565,9 +614,9 @@ def show_figures(result: ProcedureResult | Path) -> None:
 
 def show_result(result: ProcedureResult | Path, figures: bool = True) -> None:
     """Summary lines (lab units), warnings, calibration id and figures of a result or output folder."""
-    if isinstance(result, ProcedureResult):
+    if isinstance(result, ProcedureResult):  # a re-analysis: its partial set was never stored
         summary, warnings = list(result.summary), list(result.warnings)
-        cal_id = result.calibration.id if result.calibration is not None else None
+        cal_id = None
     else:
         rpath = next(iter(sorted(Path(result).rglob("result.json"))), None)
         doc = json.loads(rpath.read_text()) if rpath else {}
@@ -580,10 +629,18 @@ def show_result(result: ProcedureResult | Path, figures: bool = True) -> None:
         st.code("\n".join(summary), language=None)
     for w in warnings:
         st.warning(w)
-    if cal_id:
+    if cal_id and _in_store(cal_id):  # name a calibration set only when the store holds it
         st.caption(f"Calibration set {cal_id}")
     if figures:
         show_figures(result)
+
+
+def _in_store(set_id: str) -> bool:
+    try:
+        store().get_set(set_id)
+    except WorkbenchError:
+        return False
+    return True
 
 
 def page_link(page: str, label: str) -> None:

@@ -451,3 +451,30 @@ def test_lab_labels_carry_the_lab_unit():
     assert lab_label("rate_deg_s") == "rate (°/s)" and lab_label("dwell_s") == "dwell (s)"
     assert lab_label("accel_rrw_m_s_h_sqrt_h") == "accel rrw (m/s/h/√h)"
     assert lab_label("positions") == "positions" and lab_label("gap_policy") == "gap policy"
+
+
+def test_result_picker_opens_the_stored_result_and_reanalyses_only_on_request(toy_procedure, stored_session):
+    """A session with a stored result shows that result (summary, options, stored figures), not a re-analysis."""
+    from dashboard import common
+
+    (stored_session.parent / "figures").mkdir(exist_ok=True)
+    (stored_session.parent / "figures" / "toy_mean.png").write_bytes(bytes.fromhex(
+        "89504e470d0a1a0a0000000d4948445200000001000000010806000000"
+        "1f15c4890000000d49444154789c6360000002000154a24f5d0000000049454e44ae426082"))
+    common.store().add_result("toy", "sess-0001", "DASH-001", {"procedure": "toy", "summary": ["stored: 7 °/h"],
+                                                               "options": {"fail": False}, "warnings": []})
+    calls = []
+    analyze = toy_procedure.analyze
+    toy_procedure.analyze = lambda session, **o: calls.append(o) or analyze(session, **o)
+    at = AppTest.from_string(ANALYSIS_PAGE, default_timeout=TIMEOUT).run()
+    assert not at.exception and not at.error
+    assert any("stored: 7 °/h" in c.value for c in at.code) and calls == []  # nothing re-analysed
+    assert any("fail = false" in c.value for c in at.caption)  # the options it was computed with
+    assert len(at.get("image")) == 1  # the stored figure
+    button = at.button(key="toy.reanalyse")
+    assert button.proto.label == "Re-analyse with: the defaults"
+    button.click().run()
+    assert not at.exception and len(calls) == 1
+    assert any("gyro x mean" in c.value for c in at.code)
+    assert any("(not stored)" in i for i in texts(at, "info"))
+    assert len(common.store().list_results("toy")) == 1  # the re-analysis stored nothing

@@ -34,6 +34,7 @@ from workbench.calset import TRIADS, CalibrationSet, atomic_write_text
 from workbench.coefficients import TRIAD_TITLES, ci_text, noise_rows, sigma_text, thermal_reference, triad_rows
 from workbench.coefficients import value_text
 from workbench.errors import WorkbenchError
+from workbench.stored import stored_figures, stored_options
 
 TEMPLATES = Path(__file__).resolve().parents[1] / "templates"
 COVERAGE_K = 2.0  # expanded uncertainty U = k u (about 95 % coverage for a normal distribution)
@@ -111,10 +112,7 @@ def _reference_equipment(manifests: list[dict]) -> tuple[list[dict], list[str]]:
 
 def _figures(folder: Path | None) -> list[tuple[str, str]]:
     """(title, base64 PNG) of the figures stored beside a session when its result was computed."""
-    if folder is None:
-        return []
-    return [(p.stem.replace("_", " "), base64.b64encode(p.read_bytes()).decode())
-            for p in sorted((folder.parent / "figures").glob("*.png"))]
+    return [(p.stem.replace("_", " "), base64.b64encode(p.read_bytes()).decode()) for p in stored_figures(folder)]
 
 
 def _sessions(cal: CalibrationSet, store, progress: Progress) -> tuple[list[dict], list[str]]:
@@ -137,7 +135,7 @@ def _sessions(cal: CalibrationSet, store, progress: Progress) -> tuple[list[dict
                          "conditions and figures cannot be stated")
         elif not figures:
             notes.append(f"session {prov['id'][:8]} ({prov['procedure']}): no figures were stored with its result")
-        options = result.get("options") or (manifest or {}).get("options") or {}
+        options = (stored_options(path, prov["procedure"], result) if manifest is not None else None) or {}
         out.append({"id": prov["id"], "procedure": prov["procedure"], "sha256": prov.get("sha256", ""),
                     "rig": prov.get("rig") or (manifest or {}).get("rig") or "",
                     "recorded": (manifest or {}).get("created", ""),

@@ -1,0 +1,44 @@
+"""What was stored with an analysis result: the options that produced it and the figures drawn from it.
+
+A run or campaign writes ``<out>/<procedure>/session/`` (the recording), ``result.json`` and
+``figures/*.png`` beside it; the options it analysed with are in ``result.json`` (``options``),
+else in the session manifest (``analysis_options``, written by ``workbench run``), else in the
+campaign's ``campaign.json`` (``analysis_options[procedure]``). Readers that must show the stored
+result, not a re-analysis (the certificate, the dashboard's analysis pages), use these.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+
+def _read(path: Path) -> dict:
+    try:
+        doc = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError):
+        return {}
+    return doc if isinstance(doc, dict) else {}
+
+
+def stored_options(session_dir: str | Path | None, procedure: str, result: dict | None = None) -> dict | None:
+    """The analysis options a stored result was computed with (lab units, as given), None when not recorded."""
+    if result and isinstance(result.get("options"), dict):
+        return dict(result["options"])
+    if not session_dir:
+        return None
+    folder = Path(session_dir)
+    manifest = _read(folder / "session.json")
+    if isinstance(manifest.get("analysis_options"), dict):
+        return dict(manifest["analysis_options"])
+    campaign = _read(folder.parent.parent / "campaign.json").get("analysis_options") or {}
+    if procedure in campaign:
+        return dict(campaign[procedure])
+    return {} if manifest else None
+
+
+def stored_figures(session_dir: str | Path | None) -> list[Path]:
+    """The PNG figures written beside a session when its result was computed (``../figures/*.png``)."""
+    if not session_dir:
+        return []
+    return sorted((Path(session_dir).parent / "figures").glob("*.png"))
