@@ -95,8 +95,9 @@ def test_maytag_one_axis_eq_4_3_is_ambiguous():
     m1, m2 = OMEGA_N * np.cos(psi) + 1e-4, -OMEGA_N * np.cos(psi) + 1e-4
     cands = nfm.maytag_azimuth_one_axis(m1, m2, LAT)
     assert cands[0] == pytest.approx(psi, abs=1e-12) and cands[1] == pytest.approx(-psi, abs=1e-12)
-    # the mirrored azimuth gives the same outputs: that is the ambiguity
-    assert OMEGA_N * np.cos(-psi) == pytest.approx(OMEGA_N * np.cos(psi))
+    # the ambiguity: both candidates explain the pair (eq. 4.1-4.2: (m1 - m2) / 2 = Omega_N cos(azimuth))
+    for c in cands:
+        assert OMEGA_N * np.cos(c) == pytest.approx((m1 - m2) / 2, abs=1e-15)
 
 
 def test_harmonic_fit_of_one_pair_equals_eq_4_6():

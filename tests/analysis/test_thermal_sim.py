@@ -70,7 +70,7 @@ def test_soak_sweep_hysteresis_and_scale(soak_run):
 
 
 def test_soak_sweep_calibration_set_and_outputs(soak_run):
-    result, _ = soak_run
+    result, truth = soak_run
     cal = result.calibration
     assert cal.to_json()  # schema-valid
     th = cal.model("gyro").thermal
@@ -80,6 +80,12 @@ def test_soak_sweep_calibration_set_and_outputs(soak_run):
     assert cal.triads["accel"].thermal_range_c[0] < -39 and cal.triads["accel"].thermal_range_c[1] > 84
     figs = proc.figures(result)
     assert {"gyro_bias_fit", "gyro_bias_residuals", "gyro_bias_order"} <= set(figs)
+    # the set the exports carry, against the truth: the bias at t_ref (mid-branch) of each triad within
+    # 4 of its own 1-sigma (the soak means' noise propagated through the fit)
+    for triad in ("gyro", "accel"):
+        ref = true_bias(truth, triad, np.array([th.t_ref_c]), 0)[0]
+        est, sig = cal.model(triad).bias, cal.triads[triad].sigma_of("bias")
+        assert np.all(np.abs(est - ref) < 4 * sig), (triad, (est - ref) / sig)
     for fmt in ("px4", "ardupilot", "c-header"):
         exp = exporter(fmt).export(cal)
         assert exp.text

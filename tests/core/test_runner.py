@@ -4,11 +4,8 @@ import shutil
 import signal
 import subprocess
 import sys
-import time
 
 import numpy as np
-
-import pytest
 
 from workbench.session import load_session, recorded_steps
 
@@ -22,7 +19,13 @@ from workbench.sequence import Hold, Index, Sequence
 proc = types.SimpleNamespace(NAME="demo", TRIADS=("gyro", "accel"), DEFAULTS={},
     sequence=lambda spec: Sequence("demo", [Hold("z-down", dwell_s=20.0), Index(np.pi, 20.0)] * 6))
 spec = load_spec("industrial_mems")
-record_procedure(proc, spec, draw_unit(spec, 5), load_rig_config("sim"), 5, Path(sys.argv[1]))
+# with a second argument k the process kills itself (SIGKILL, no clean-up) once k steps are recorded
+kill_after = int(sys.argv[2]) if len(sys.argv) > 2 else None
+def progress(i, n, rec):
+    if kill_after is not None and i + 1 == kill_after:
+        import os, signal
+        os.kill(os.getpid(), signal.SIGKILL)
+record_procedure(proc, spec, draw_unit(spec, 5), load_rig_config("sim"), 5, Path(sys.argv[1]), progress=progress)
 """
 
 
@@ -36,17 +39,12 @@ def _recorded_steps(out) -> int:
 def test_killed_run_leaves_completed_steps_readable_and_resumes(tmp_path):
     out = tmp_path / "session"
     env = {**os.environ, "PYTHONPATH": os.getcwd()}
-    p = subprocess.Popen([sys.executable, "-c", RECORD, str(out)], env=env)
-    deadline = time.time() + 120
-    # wait on the recorded steps (manifest and step log), not on the part files: a part is written
-    # before the step log names it, so a kill between the two leaves one more part than recorded steps
-    while time.time() < deadline and _recorded_steps(out) < 4:
-        time.sleep(0.05)
-    p.send_signal(signal.SIGKILL)
-    p.wait()
+    # the recording kills itself right after its 4th step is recorded (step log written): deterministic,
+    # no race between the recording and a kill from outside
+    p = subprocess.run([sys.executable, "-c", RECORD, str(out), "4"], env=env, timeout=300)
+    assert p.returncode == -signal.SIGKILL
     manifest = json.loads((out / "session.json").read_text())
-    if manifest.get("complete"):
-        pytest.skip("the recording finished before it could be killed")
+    assert not manifest.get("complete") and _recorded_steps(out) == 4
     done = len(recorded_steps(out, manifest))
     assert done >= 4
     partial = load_session(out, require_complete=False)

@@ -286,6 +286,7 @@ def complementary(samples: ImuSamples, latitude: float, config: AhrsConfig = Ahr
         e = np.array([z[0], z[1], 0.0 if disturbed else -z[2]])
         return kp * T * e, -T * blk.c_mean.T @ (ki * e), nan6, 0.0 if disturbed else 1.0
 
+    _check(samples, config)  # no magnetometer: the one-line error, before its noise is estimated
     return _run(samples, latitude, config, correct, "complementary", float(np.mean(mag_white_noise(samples.mag))))
 
 
