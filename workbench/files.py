@@ -11,12 +11,16 @@ import os
 import tempfile
 from pathlib import Path
 
+from workbench.staging import umask
+
 
 def atomic_write_text(path: Path, text: str) -> Path:
-    """Write ``text`` to ``path`` through a temp file in the same folder and an atomic rename."""
+    """Write ``text`` to ``path`` through a temp file in the same folder and an atomic rename
+    (permissions as the user's umask gives a new file)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
+        os.fchmod(fd, 0o666 & ~umask())  # mkstemp creates 0600; the file gets the user's usual permissions
         with os.fdopen(fd, "w") as fh:
             fh.write(text)
             fh.flush()

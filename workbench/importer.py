@@ -17,13 +17,14 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import yaml
-
 from workbench.calset import Unit, file_sha256
+from workbench.confine import confined_path, plain_template
 from workbench.errors import ImportProfileError, WorkbenchError
 from workbench.sequence import mount_matrix
 from workbench.session import (ACCEL, GYRO, MAG, STEP_KINDS, Session, Site, StepRecord, load_session,
                                validate_samples, write_session)
+from workbench.safe_yaml import load_yaml_file
+from workbench.staging import refuse_existing, staged_folder
 from workbench.units import factor
 
 PROFILE_FORMAT = "workbench-import/1"
@@ -37,12 +38,7 @@ _DIMENSION = {"rad/s": {"rad/s", "deg/s", "deg/h"}, "m/s^2": {"m/s^2", "g", "mg"
 def load_profile(path: str | Path) -> dict:
     """Read and check an import profile; raises ImportProfileError naming the file and key."""
     path = Path(path)
-    try:
-        prof = yaml.safe_load(path.read_text())
-    except OSError as exc:
-        raise ImportProfileError(f"{path}: cannot read ({exc.strerror})") from None
-    except yaml.YAMLError as exc:
-        raise ImportProfileError(f"{path}: not valid YAML ({str(exc).splitlines()[0]})") from None
+    prof = load_yaml_file(path, error=ImportProfileError)  # size and alias expansion limited
     if not isinstance(prof, Mapping) or prof.get("format") != PROFILE_FORMAT:
         raise ImportProfileError(f"{path}: 'format' must be {PROFILE_FORMAT!r}")
     for key in ("columns", "site", "sample_rate_hz"):
@@ -108,8 +104,9 @@ def _sections(prof: Mapping, data_file: Path, profile_path: Path) -> dict:
     if "inline" in sec:
         ranges = sec["inline"]
     elif "file" in sec:
-        f = Path(str(sec["file"]).format(stem=data_file.stem))
-        f = f if f.is_absolute() else data_file.parent / f
+        name = plain_template(str(sec["file"]), {"stem"}, f"{profile_path}: sections.file", ImportProfileError)
+        f = confined_path(data_file.parent, name.format(stem=data_file.stem), f"{profile_path}: sections.file",
+                          ImportProfileError)
         try:
             ranges = json.loads(f.read_text())
         except (OSError, json.JSONDecodeError) as exc:
@@ -122,6 +119,7 @@ def _sections(prof: Mapping, data_file: Path, profile_path: Path) -> dict:
 def import_file(profile_path: str | Path, data_file: str | Path, out_dir: str | Path) -> Session:
     """Import ``data_file`` through the profile into a session folder ``out_dir``; returns it loaded."""
     profile_path, data_file, out_dir = Path(profile_path), Path(data_file), Path(out_dir)
+    refuse_existing(out_dir, "--out session folder")
     prof = load_profile(profile_path)
     if not data_file.exists():
         raise WorkbenchError(f"{data_file}: no such file")
@@ -167,5 +165,6 @@ def import_file(profile_path: str | Path, data_file: str | Path, out_dir: str | 
                       str(prof.get("procedure", "")), steps, df,
                       options={"imported_from": str(data_file), "source_sha256": sha, "profile": profile_path.name},
                       rig=str(prof.get("rig", "imported")))
-    write_session(session, out_dir)
+    with staged_folder(out_dir, "--out session folder") as tmp:  # whole or not at all
+        write_session(session, tmp)
     return load_session(out_dir)

@@ -14,16 +14,23 @@ import sys
 
 import typer
 from rich.console import Console
-from rich.markup import escape
+from rich.text import Text
 
 from workbench import __version__
 from workbench.errors import WorkbenchError
 
 app = typer.Typer(no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False,
                   help="Calibration workbench for inertial and magnetic sensors.")
-# no automatic highlighting: digits inside paths and ids are not numbers to colour
-err = Console(stderr=True, highlight=False)
-out = Console(highlight=False)
+# markup off: user text (serials, labels, file names, messages) is printed as it is, never parsed as
+# Rich markup; styled labels are passed as Text (see :func:`styled`). No automatic highlighting:
+# digits inside paths and ids are not numbers to colour.
+err = Console(stderr=True, markup=False, highlight=False)
+out = Console(markup=False, highlight=False)
+
+
+def styled(tag: str, style: str, rest: str = "") -> Text:
+    """``tag`` in ``style`` followed by ``rest`` verbatim (no markup is parsed in either)."""
+    return Text.assemble((tag, style), rest)
 
 
 def _version(value: bool) -> None:
@@ -89,12 +96,12 @@ def main(argv: list[str] | None = None) -> int:
     try:
         rv = command.main(args=argv, prog_name="workbench", standalone_mode=False)
     except WorkbenchError as exc:
-        err.print(f"[bold red]error:[/] {escape(' '.join(str(exc).split()))}", highlight=False, soft_wrap=True)
+        err.print(styled("error:", "bold red", " " + " ".join(str(exc).split())), highlight=False, soft_wrap=True)
         return 2
     except exits as exc:
         return int(exc.exit_code or 0)
     except usage as exc:
-        err.print(escape(_usage_line(exc)), highlight=False, soft_wrap=True)
+        err.print(_usage_line(exc), highlight=False, soft_wrap=True)
         return 2
     except (KeyboardInterrupt, *aborts):
         err.print("interrupted", highlight=False)

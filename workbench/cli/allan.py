@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 import typer
 from rich.table import Table
 
-from workbench.cli import out
+from workbench.cli import out, styled
 from workbench.errors import AnalysisError, SessionError
 
 if TYPE_CHECKING:  # numpy, pandas, sessions and the fit (scipy.stats, cvxpy) load when the command runs
@@ -192,7 +192,7 @@ def register(app: typer.Typer) -> None:
             y, fs, cols, label = load_record(source, cols, rate)
             an = analyze_record(y, fs, cols, quantity_of(cols), taus, gap_policy, label)
         for w in an.warnings:
-            out.print(f"[yellow]warning:[/] {w}")
+            out.print(styled("warning:", "yellow", f" {w}"))
         _print_terms(an)
         if out_csv is not None:
             out_csv.parent.mkdir(parents=True, exist_ok=True)

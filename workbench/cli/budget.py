@@ -14,7 +14,7 @@ from dataclasses import replace
 import typer
 from rich.table import Table
 
-from workbench.cli import out
+from workbench.cli import out, styled
 from workbench.errors import AnalysisError
 
 budget_app = typer.Typer(no_args_is_help=True, help="Error budgets: is this unit good enough for that facility?")
@@ -69,9 +69,9 @@ def reference_facility(
     aiding = rf.Aiding(ppr_sigma_m=from_unit(ppr_cm, "cm"), tilt_sigma=from_unit(tilt_deg, "deg"),
                        yaw_sigma=from_unit(yaw_deg, "deg"), pdop=pdop, vdop=vdop)
     req = rf.Requirement(from_unit(position_req_cm, "cm"), from_unit(attitude_req_deg, "deg"))
-    out.print(f"[bold]{imu.source}[/]: ARW {_fmt3(imu.gyro_white, 'deg/sqrt(h)', 3)} {label('deg/sqrt(h)')}, "
+    out.print(styled(imu.source, "bold", f": ARW {_fmt3(imu.gyro_white, 'deg/sqrt(h)', 3)} {label('deg/sqrt(h)')}, "
               f"VRW {_fmt3(imu.accel_white, 'm/s/sqrt(h)', 3)} {label('m/s/sqrt(h)')}, gyro bias instability "
-              f"{_fmt3(imu.gyro_bias_instability, 'deg/h', 2)} {label('deg/h')}", highlight=False)
+              f"{_fmt3(imu.gyro_bias_instability, 'deg/h', 2)} {label('deg/h')}"), highlight=False)
     t = Table("flight", "filter", "within req. (p / att), s", "position N E D, cm", "attitude N E D, °",
               "saw-tooth D, °", title=f"1-sigma peaks over the second half; PPR {ppr_cm:g} cm, PDOP {pdop:g}, "
                                       f"VDOP {vdop:g}, tilt {tilt_deg:g}°, yaw {yaw_deg:g}°")

@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 from rich.progress import BarColumn, Progress, TextColumn
 
-from workbench.cli import err, out
+from workbench.cli import err, out, styled
 from workbench.cli.run import parse_options
 
 
@@ -27,7 +27,7 @@ def batch(procedure: str = typer.Argument(..., metavar="PROCEDURE"),
     get_procedure(procedure)  # an unknown procedure fails before a cluster starts
     store = None if no_store else Store()
     opts = parse_options(option)
-    bar = Progress(TextColumn("[bold]batch"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
+    bar = Progress(TextColumn("batch", style="bold"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
                    TextColumn("{task.fields[last]}"), console=err)
     with bar:
         task = bar.add_task("batch", total=len(session_dirs), last="")
@@ -44,7 +44,7 @@ def batch(procedure: str = typer.Argument(..., metavar="PROCEDURE"),
     out.print(f"{len(report.succeeded)} analysed, {len(report.failures)} failed"
               f"{'; results stored in ' + store.url if store else ''}")
     for f in report.failures:
-        out.print(f"[red]failed:[/] {f['session_dir']}: {f['error']}", highlight=False)
+        out.print(styled("failed:", "red", f" {f['session_dir']}: {f['error']}"), highlight=False)
     if report.failures:
         raise typer.Exit(1)
 
@@ -59,7 +59,7 @@ def simulate_fleet_cmd(grade: str = typer.Option(..., "--grade", help="Grade nam
     """Record a procedure for N simulated units of one grade (one session folder per unit)."""
     from workbench.fleet.simulate import simulate_fleet
 
-    with Progress(TextColumn("[bold]simulate"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
+    with Progress(TextColumn("simulate", style="bold"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
                   console=err) as bar:
         task = bar.add_task("simulate", total=units)
         dirs = simulate_fleet(grade, units, procedure, out_dir, seed, options=parse_options(option),

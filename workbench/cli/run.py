@@ -14,7 +14,7 @@ import typer
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
-from workbench.cli import err, out
+from workbench.cli import err, out, styled
 from workbench.errors import ProcedureError, WorkbenchError
 from workbench.options import declarations, option_rows, split, validate
 from workbench.registry import procedure, procedures
@@ -50,8 +50,9 @@ def _is_number(value) -> bool:
 
 
 def _progress_bar():
-    return Progress(TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total} steps"),
-                    TextColumn("{task.fields[step]}"), TimeRemainingColumn(), console=err, transient=False)
+    return Progress(TextColumn("{task.description}", style="bold", markup=False), BarColumn(),
+                    TextColumn("{task.completed}/{task.total} steps"), TextColumn("{task.fields[step]}", markup=False),
+                    TimeRemainingColumn(), console=err, transient=False)
 
 
 def _tracker(bar: Progress, name: str, total: int | None = None):
@@ -96,7 +97,7 @@ def _print_result(result: ProcedureResult, out_dir: Path | None) -> None:
     for line in result.summary:
         out.print(line, highlight=False)
     for w in result.warnings:
-        out.print(f"[yellow]warning:[/] {w}", highlight=False)
+        out.print(styled("warning:", "yellow", f" {w}"), highlight=False)
     if out_dir is not None:
         out.print(f"results in {out_dir} (result.json{', calibration.json' if result.calibration else ''}, figures/)",
                   soft_wrap=True)  # a path is never broken across lines
@@ -111,7 +112,16 @@ def _load_calibration(ref: str | None):
 
 
 def _default_out(name: str, serial: str) -> Path:
-    return Path("runs") / f"{name}-{serial}-{datetime.now(UTC).strftime('%Y%m%dT%H%M%S')}"
+    """``runs/<procedure>-<serial>-<UTC time>``; the serial must be a safe path component."""
+    from workbench.confine import safe_component
+
+    return Path("runs") / f"{name}-{safe_component(serial, 'serial')}-{datetime.now(UTC).strftime('%Y%m%dT%H%M%S')}"
+
+
+def _safe_serial(value: str | None) -> str | None:
+    from workbench.confine import safe_component
+
+    return None if value is None else safe_component(value, "--serial", typer.BadParameter)
 
 
 def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A procedure name, or 'campaign'."),
@@ -119,8 +129,9 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
                                   help="Unit grade fixture (fixtures/units/*.yaml) or grade name."),
         rig: str = typer.Option("sim", "--rig", help="'sim' or a rig configuration file (fixtures/rigs/*.yaml)."),
         seed: int = typer.Option(1, "--seed", help="Seed of the simulated unit and its noise."),
-        serial: str = typer.Option(None, "--serial", help="Serial of the unit under test (on a real rig; "
-                                                           "default: the simulated unit's, <grade>-<seed>)."),
+        serial: str = typer.Option(None, "--serial", callback=_safe_serial,
+                                   help="Serial of the unit under test (on a real rig; default: the simulated "
+                                        "unit's, <grade>-<seed>); letters, digits and . _ + -."),
         out_dir: Path = typer.Option(None, "--out", help="Output folder (default runs/<procedure>-<serial>-<time>)."),
         resume: Path = typer.Option(None, "--resume", help="Continue an interrupted session folder."),
         option: list[str] = typer.Option(None, "--option", "-o", help="Option key=value of the sequence or the analysis (repeatable; "
@@ -166,9 +177,9 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
             res = run_campaign(spec, truth, cfg, seed, out_dir, store,
                                lambda name: _tracker(bar, name, totals.get(name)), options=campaign_options)
         for name, r in res.results.items():
-            out.print(f"[bold]{name}[/]")
+            out.print(name, style="bold")
             _print_result(r, out_dir / name)
-        out.print(f"[bold green]calibration set[/] {res.calibration.id} -> {out_dir / 'calibration.json'}",
+        out.print(styled("calibration set", "bold green", f" {res.calibration.id} -> {out_dir / 'calibration.json'}"),
                   soft_wrap=True)
         out.print(f"figures under {out_dir}/*/figures; store: {store.url if store else 'not used (--no-store)'}",
                   soft_wrap=True)

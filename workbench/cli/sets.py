@@ -8,10 +8,9 @@ from typing import TYPE_CHECKING
 
 import typer
 from rich import box
-from rich.markup import escape
 from rich.table import Table
 
-from workbench.cli import out
+from workbench.cli import out, styled
 from workbench.registry import exporter, exporters
 
 if TYPE_CHECKING:  # the set format, its coefficients and the store load when a command runs, not with the CLI
@@ -47,8 +46,8 @@ def list_sets(unit: str = typer.Option(None, "--unit", help="Only this unit seri
         raise typer.BadParameter(f"--format {format!r}: expected table or json")
     for i in infos:
         unit = f"{i.serial} ({i.model})" if i.model and i.model not in i.serial else i.serial
-        out.print(f"[bold]{i.id[:8]}[/]  {escape(unit)}  v{i.version}  {i.created[:16].replace('T', ' ')} UTC  "
-                  f"approved by {escape(i.approved_by) if i.approved_by else '—'}")
+        out.print(styled(i.id[:8], "bold", f"  {unit}  v{i.version}  {i.created[:16].replace('T', ' ')} UTC  "
+                                            f"approved by {i.approved_by or '—'}"))
         out.print(f"          procedures: {', '.join(i.procedures) or '—'}")
 
 
@@ -68,7 +67,7 @@ def _triad_table(cal: CalibrationSet, triad: str) -> Table:
     t = _table("coefficient", "value ± 1σ", "unit", title=f"{TRIAD_TITLES[triad]} ({triad})")
     for r in triad_rows(cal, triad):
         sig = "± " + sigma_text(r.sigma) if r.observed else "(σ not observed)"
-        t.add_row(escape(r.name), f"{value_text(r.value)} {sig}", r.unit)
+        t.add_row(r.name, f"{value_text(r.value)} {sig}", r.unit)
     return t
 
 
@@ -84,8 +83,8 @@ def show(ref: str = typer.Argument(..., help="Set id (or prefix), or a calibrati
     if as_json:
         out.print_json(cal.to_json())
         return
-    out.print(f"[bold]set {cal.id}[/]")
-    out.print(f"unit {escape(cal.unit.serial)} ({escape(cal.unit.model)}), created {cal.created}")
+    out.print(f"set {cal.id}", style="bold")
+    out.print(f"unit {cal.unit.serial} ({cal.unit.model}), created {cal.created}")
     out.print(f"procedures: {', '.join(cal.provenance.procedures) or '—'}; sessions: "
               f"{len(cal.provenance.sessions)}; software {cal.provenance.software_version}")
     for triad in cal.triads:
@@ -122,7 +121,7 @@ def diff(old: str = typer.Argument(..., help="Older set: id or JSON file."),
         old_text = "not observed" if r.state in (NOT_OBSERVED_A, NOT_OBSERVED) else value_text(r.old / f)
         new_text = "not observed" if r.state in (NOT_OBSERVED_B, NOT_OBSERVED) else value_text(r.new / f)
         change = f"{r.change_in_sigma:+.2f}" if r.observed_in_both else r.state
-        t.add_row(escape(f"{r.triad} {element_name(r.field, r.index)}"), old_text, new_text, label, change,
+        t.add_row(f"{r.triad} {element_name(r.field, r.index)}", old_text, new_text, label, change,
                   style="bold red" if r.observed_in_both and abs(r.change_in_sigma) > 3 else "")
     n_both = sum(r.observed_in_both for r in rows)
     out.print(f"{len(rows)} coefficient(s) differ between A = {a.id[:8]} and B = {b.id[:8]}: {n_both} observed in "
@@ -142,7 +141,7 @@ def export(ref: str = typer.Argument(..., help="Set id (or prefix) or calibratio
     ex = exporter(format)
     result = ex.export(load_set_ref(ref))
     for item in result.dropped:
-        out.print(f"[yellow]dropped:[/] {item}", highlight=False)
+        out.print(styled("dropped:", "yellow", f" {item}"), highlight=False)
     if out_file is None:
         print(result.text, end="")
     else:

@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
+from workbench.confine import safe_component
 from workbench.grades import draw_unit, load_spec
 from workbench.jobs import record_procedure
 from workbench.registry import procedure as get_procedure
@@ -23,7 +24,7 @@ def simulate_fleet(grade: str, units: int, procedure: str, out_dir: Path, seed0:
     for k in range(units):
         seed = seed0 + k
         truth = draw_unit(spec, seed, serial=f"{spec.name}-{seed:05d}")
-        d = out_dir / truth.serial
+        d = out_dir / safe_component(truth.serial, f"grade {spec.name}: serial")
         record_procedure(proc, spec, truth, cfg, seed, d, options)
         dirs.append(d)
         if progress is not None:

@@ -1,0 +1,40 @@
+"""User text is printed as it is, never parsed as Rich markup (issue 16)."""
+
+import pytest
+
+from tests.core.test_store import a_set
+from workbench.cli import main
+from workbench.store import Store
+
+
+@pytest.fixture
+def db(tmp_path, monkeypatch):
+    url = f"sqlite:///{tmp_path}/w.db"
+    monkeypatch.setenv("WORKBENCH_DB", url)
+    return url
+
+
+def test_a_serial_with_markup_stored_by_merge_does_not_break_sets_list(db, tmp_path, capsys):
+    path = a_set(serial="SN[/]x").save(tmp_path / "s.json")
+    assert main(["sets", "merge", str(path)]) == 0
+    Store(db).add_set(a_set(serial="[bold red]U2[/]"))
+    capsys.readouterr()
+    assert main(["sets", "list"]) == 0
+    listing = capsys.readouterr().out
+    assert "SN[/]x" in listing and "[bold red]U2[/]" in listing
+    [info] = [i for i in Store(db).list_sets() if i.serial == "SN[/]x"]
+    assert main(["sets", "show", info.id]) == 0 and "SN[/]x" in capsys.readouterr().out
+
+
+def test_bracketed_text_in_an_error_survives(db, tmp_path, capsys):
+    assert main(["run", "multiposition", "--unit", str(tmp_path / "[step 3] [/].yaml")]) == 2
+    err = capsys.readouterr().err
+    assert "[step 3] [/].yaml" in err and len(err.strip().splitlines()) == 1
+
+
+def test_bracketed_step_labels_survive_the_sequence_table(db, capsys):
+    from workbench.cli.run import _print_sequence
+    from workbench.sequence import Hold, Sequence
+
+    _print_sequence(Sequence("demo", [Hold("z-down", dwell_s=1.0, label="[bold]up[/] [x]")]))
+    assert "[bold]up[/] [x]" in capsys.readouterr().out
