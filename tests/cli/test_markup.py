@@ -1,17 +1,9 @@
 """User text is printed as it is, never parsed as Rich markup (issue 16)."""
 
-import pytest
-
+from tests.core.test_cli_sets import db  # noqa: F401 (fixture: a store URL in $WORKBENCH_DB)
 from tests.core.test_store import a_set
 from workbench.cli import main
 from workbench.store import Store
-
-
-@pytest.fixture
-def db(tmp_path, monkeypatch):
-    url = f"sqlite:///{tmp_path}/w.db"
-    monkeypatch.setenv("WORKBENCH_DB", url)
-    return url
 
 
 def test_a_serial_with_markup_stored_by_merge_does_not_break_sets_list(db, tmp_path, capsys):
