@@ -237,12 +237,14 @@ def run_campaign(spec, truth, cfg: RigConfig, seed: int, out_dir: Path, store=No
         "procedures": list(results), "analysis_options": analyses, "calibration_id": merged.id,
         "warnings": {n: r.warnings for n, r in results.items()}}, indent=1) + "\n")
     if store is not None:
-        for name, r in results.items():
-            s = sessions[name]
-            store.add_session(s.id, s.unit.serial, s.unit.model, name, str(s.path), s.samples_sha256() or "",
-                              len(s.steps), True)
-            from workbench.procedure import result_json
+        from workbench.procedure import result_json
 
-            store.add_result(name, s.id, s.unit.serial, json.loads(result_json(r)), None)
-        store.add_set(merged)
+        def write() -> None:  # one transaction: every session record, result and the merged set, or nothing
+            for name, r in results.items():
+                s = sessions[name]
+                store.add_session(s.id, s.unit.serial, s.unit.model, name, str(s.path), s.samples_sha256() or "",
+                                  len(s.steps), True)
+                store.add_result(name, s.id, s.unit.serial, json.loads(result_json(r)), None)
+            store.add_set(merged)
+        store.write_together(write)
     return CampaignResult(merged, results, out_dir)

@@ -160,10 +160,12 @@ def run_analysis(proc, session: Session, options: Mapping | None = None, out_dir
         figs = proc.figures(result) if hasattr(proc, "figures") else None
         write_outputs(result, Path(out_dir), figs)
     if store is not None:
-        store.add_session(session.id, session.unit.serial, session.unit.model, result.procedure,
-                          str(session.path or ""), session.samples_sha256() or "", len(session.steps), True)
-        store.add_result(result.procedure, session.id, session.unit.serial, json.loads(result_json(result)),
-                         result.calibration)
+        def write() -> None:  # one transaction: the session record, the result and its set, or nothing
+            store.add_session(session.id, session.unit.serial, session.unit.model, result.procedure,
+                              str(session.path or ""), session.samples_sha256() or "", len(session.steps), True)
+            store.add_result(result.procedure, session.id, session.unit.serial, json.loads(result_json(result)),
+                             result.calibration)
+        store.write_together(write)
     return result
 
 

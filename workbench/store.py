@@ -14,9 +14,10 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import re
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from datetime import UTC, datetime
@@ -43,6 +44,24 @@ MIGRATIONS = Path(__file__).resolve().parent / "migrations"
 def default_url() -> str:
     """The store URL: ``WORKBENCH_DB`` if set, else SQLite ``./workbench.db``."""
     return os.environ.get("WORKBENCH_DB") or DEFAULT_URL
+
+
+_PASSWORD = re.compile(r"^(?P<head>[^:/?#]+://[^:@/?#]*):(?P<password>[^@/?#]*)@")
+
+
+def redact_url(url: str) -> str:
+    """``url`` with its password (``scheme://user:PASSWORD@host``) replaced by ``***``, for output."""
+    return _PASSWORD.sub(r"\g<head>:***@", url, count=1)
+
+
+def redact(text: str, url: str) -> str:
+    """``text`` (e.g. a database driver's message) with ``url``'s password replaced by ``***``."""
+    m = _PASSWORD.match(url)
+    return text.replace(m["password"], "***") if m and m["password"] else text
+
+
+class StoreConflict(StoreError):
+    """A transaction rolled back because another writer took the same key (e.g. a set version)."""
 
 
 class Base(DeclarativeBase):
@@ -139,11 +158,13 @@ class Store:
     """Calibration sets, units, sessions and results in one database (see module docstring)."""
 
     def __init__(self, url: str | None = None, create: bool = True):
-        self.url = url or default_url()
+        real = url or default_url()
+        self.url, self._real = redact_url(real), real  # messages and output show .url: never the password
         try:
-            self.engine = create_engine(self.url)
+            self.engine = create_engine(real)
         except (SQLAlchemyError, ValueError, ImportError) as exc:
-            raise StoreError(f"store {self.url}: cannot open ({str(exc).splitlines()[0][:160]})") from None
+            raise StoreError(f"store {self.url}: cannot open ({redact(str(exc).splitlines()[0][:160], real)})"
+                             ) from None
         if self.engine.dialect.name == "sqlite":
             db = self.engine.url.database
             if db and db != ":memory:" and not Path(db).parent.resolve().is_dir():
@@ -164,7 +185,8 @@ class Store:
                 raise StoreError(f"store {self.url}: schema revision {current or 'unknown'}, this version needs "
                                  f"{HEAD_REVISION}; run `workbench db upgrade --db {self.url}`")
         except SQLAlchemyError as exc:
-            raise StoreError(f"store {self.url}: cannot open ({str(exc).splitlines()[0][:160]})") from None
+            raise StoreError(f"store {self.url}: cannot open ({redact(str(exc).splitlines()[0][:160], self._real)})"
+                             ) from None
 
     @contextmanager
     def transaction(self) -> Iterator[Session]:
@@ -182,7 +204,7 @@ class Store:
         except IntegrityError:
             raise
         except OperationalError as exc:
-            raise StoreError(f"store {self.url}: {str(exc.orig)[:160]}") from None
+            raise StoreError(f"store {self.url}: {redact(str(exc.orig)[:160], self._real)}") from None
         finally:
             db.close()
 
@@ -204,8 +226,26 @@ class Store:
                 finally:
                     self._batch.db = None
         except IntegrityError as exc:
-            raise StoreError(f"store {self.url}: batch rolled back, another writer conflicts "
-                             f"({str(exc.orig).splitlines()[0][:120]})") from None
+            raise StoreConflict(f"store {self.url}: batch rolled back, another writer conflicts "
+                                f"({str(exc.orig).splitlines()[0][:120]})") from None
+
+    def write_together(self, write: Callable[[], object], retries: int = 20) -> object:
+        """Run ``write`` (several store writes) as one transaction: all of it is stored or none.
+
+        One command = one transaction (a session record, its results and its calibration set).
+        When another writer took the unit's next set version the whole transaction is rolled
+        back and run again.
+        """
+        for attempt in range(retries - 1):
+            try:
+                with self.batch():
+                    return write()
+            except StoreConflict:
+                if self._in_batch():
+                    raise
+                time.sleep(0.05 * (attempt + 1))
+        with self.batch():
+            return write()
 
     def _in_batch(self) -> bool:
         return getattr(self._batch, "db", None) is not None

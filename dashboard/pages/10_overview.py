@@ -6,12 +6,12 @@ import streamlit as st
 from dashboard import common
 from workbench import registry
 from workbench.errors import WorkbenchError
-from workbench.store import default_url
+from workbench.store import default_url, redact_url
 
 TITLE = "Overview"
 
 st.title("Calibration workbench")
-st.caption(f"Store: `{default_url()}`")
+st.caption(f"Store: `{redact_url(default_url())}`")
 
 try:
     db = common.store()

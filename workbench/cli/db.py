@@ -14,14 +14,15 @@ def _engine():
     from sqlalchemy import create_engine
     from sqlalchemy.exc import SQLAlchemyError
 
-    from workbench.store import default_url
+    from workbench.store import default_url, redact, redact_url
 
-    url = default_url()
+    real = default_url()
+    url = redact_url(real)  # the password never appears in output
     try:
-        engine = create_engine(url)
+        engine = create_engine(real)
         engine.connect().close()
     except (SQLAlchemyError, ValueError, ImportError) as exc:
-        raise StoreError(f"store {url}: cannot open ({str(exc).splitlines()[0][:160]})") from None
+        raise StoreError(f"store {url}: cannot open ({redact(str(exc).splitlines()[0][:160], real)})") from None
     return url, engine
 
 
