@@ -152,16 +152,42 @@ def reopen(out_dir: Path) -> Recording:
     if "planned" not in manifest:
         raise SessionError(f"{path}: no planned steps recorded; cannot resume")
     plan = [_planned_from_dict(p) for p in manifest["planned"]]
-    # the steps of the log whose samples reached the disk, up to the first missing one; the rig
+    # the steps (from the manifest, then the log) whose parts reached the disk whole, up to the first
+    # missing or damaged one (a truncated part is recorded again, with every step after it); the rig
     # state after the last of them is where the resumed recording continues
-    parts = {int(f.stem.split("_")[1]) for f in (out_dir / PARTS).glob("step_*.parquet")}
-    manifest["steps"] = [s for s in manifest["steps"] if s["index"] in parts]
+    ok = {int(f.stem.split("_")[1]) for f in (out_dir / PARTS).glob("step_*.parquet")
+          if _part_ok(f, int(f.stem.split("_")[1]))}
+    kept = []
+    for s in manifest["steps"]:
+        if s["index"] != len(kept) or s["index"] not in ok:
+            break
+        kept.append(s)
+    manifest["steps"] = kept
     for entry in step_log(out_dir):
-        if entry["step"]["index"] != len(manifest["steps"]) or entry["step"]["index"] not in parts:
+        i = entry["step"]["index"]
+        if i < len(manifest["steps"]):  # already kept; the last one's rig state is where the resume continues
+            if i == len(manifest["steps"]) - 1:
+                manifest["rig_state"] = entry["rig_state"]
+            continue
+        if i != len(manifest["steps"]) or i not in ok:
             break
         manifest["steps"].append(entry["step"])
         manifest["rig_state"] = entry["rig_state"]
+    for f in (out_dir / PARTS).glob("step_*.parquet"):
+        if int(f.stem.split("_")[1]) >= len(manifest["steps"]):
+            f.unlink()  # orphaned or damaged: recorded again
     return Recording(out_dir, manifest, plan)
+
+
+def _part_ok(path: Path, index: int) -> bool:
+    """Whether a step part is a whole Parquet file holding samples of step ``index``."""
+    import pyarrow.parquet as pq
+
+    try:
+        steps = pq.read_table(path, columns=["step"]).column("step").to_numpy()
+    except (OSError, ValueError, KeyError):  # missing, truncated (no footer), no step column
+        return False
+    return len(steps) > 0 and bool(np.any(steps == index)) and bool(np.all((steps == index) | (steps == -1)))
 
 
 def record(recording: Recording, rig, progress: Progress | None = None) -> Session:

@@ -88,7 +88,7 @@ def load_record(path: Path, columns: list[str] | None, rate: float | None) -> tu
         return _text_column(path), float(rate), columns or ["data"], str(path)
     df = read_samples(path)
     time_col = next((c for c in TIME_COLUMNS if c in df.columns), None)
-    cols = columns or [c for c in df.columns if c not in (*TIME_COLUMNS, "step") and pd.api.types.is_numeric_dtype(df[c])]
+    cols = columns or [c for c in df.columns if c not in (*TIME_COLUMNS, "step")]
     y = _columns(df, cols, path)
     if rate is None:
         if time_col is None:
@@ -119,6 +119,12 @@ def _columns(df: pd.DataFrame, cols: list[str], path: Path) -> np.ndarray:
     missing = [c for c in cols if c not in df.columns]
     if missing:
         raise AnalysisError(f"{path}: no column(s) {', '.join(missing)} (has {', '.join(map(str, df.columns))})")
+    for c in cols:  # a column with a non-numeric cell is refused, never dropped or turned into NaN
+        if not pd.api.types.is_numeric_dtype(df[c]) or pd.api.types.is_bool_dtype(df[c]):
+            bad = np.flatnonzero((pd.to_numeric(df[c], errors="coerce").isna() & df[c].notna()).to_numpy())
+            row = int(bad[0]) if len(bad) else 0
+            raise AnalysisError(f"{path}: column {c}: non-numeric cell {df[c].iloc[row]!r} at row {row + 1} "
+                                f"(choose the rate columns with --columns)")
     return df[cols].to_numpy(float)
 
 
