@@ -11,6 +11,8 @@ from pathlib import Path
 
 import streamlit as st
 
+from dashboard import auth
+
 PAGES_DIR = Path(__file__).resolve().parent / "dashboard" / "pages"
 _NAME = re.compile(r"^(\d+)_(\w+)\.py$")
 _TITLE = re.compile(r"^TITLE\s*(?::\s*str\s*)?=\s*[\"'](.+?)[\"']\s*$", re.MULTILINE)
@@ -32,6 +34,7 @@ def discover(pages_dir: Path = PAGES_DIR) -> list[tuple[int, str, str, Path]]:
 
 def main() -> None:
     st.set_page_config(page_title="Calibration workbench", page_icon="🧭", layout="wide")
+    auth.gate()  # before any page: 127.0.0.1 only, or a signed-in operator (dashboard/auth.py)
     found = discover()
     if not found:
         st.error(f"No dashboard pages in {PAGES_DIR}")

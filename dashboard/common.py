@@ -38,6 +38,7 @@ import numpy as np
 import pandas as pd
 import streamlit as st
 
+from dashboard import roots
 from workbench import registry, units
 from workbench.errors import SessionError, WorkbenchError
 from workbench.procedure import ProcedureResult
@@ -493,8 +494,16 @@ def session_picker(procedure: str | None = None, key: str = "session") -> Path |
     dirs = session_dirs(procedure)
     choice = st.selectbox("Session", ["(type a folder)", *dirs], index=1 if dirs else 0, key=key)
     if choice == "(type a folder)":
-        typed = st.text_input("Session folder", key=f"{key}.typed")
-        return Path(typed) if typed else None
+        typed = st.text_input("Session folder", key=f"{key}.typed",
+                              help="A folder inside the data roots (WORKBENCH_DATA_ROOTS; default the runs folder "
+                                   "and the working directory).")
+        if not typed:
+            return None
+        try:
+            return roots.confined_folder(typed, roots.data_roots([runs_dir(), Path.cwd()]))
+        except WorkbenchError as exc:
+            show_error(exc, "session folder")
+            return None
     return dirs[choice]
 
 

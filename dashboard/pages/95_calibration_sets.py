@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 import streamlit as st
 
-from dashboard import common
+from dashboard import auth, common
 from workbench import coefficients, registry
 from workbench.diff import NOT_OBSERVED, NOT_OBSERVED_A, NOT_OBSERVED_B, diff_sets
 from workbench.errors import ExportError, WorkbenchError
@@ -110,7 +110,10 @@ with tab_show:
     if info.approved_by:
         st.success(f"Approved by {info.approved_by}.")
     else:
-        by = st.text_input("Approved by", key="cal.by")
+        signed_in = auth.operator()  # the signed-in operator approves; a name is typed only on an open 127.0.0.1
+        by = signed_in or st.text_input("Approved by", key="cal.by")
+        if signed_in:
+            st.caption(f"Approving as {signed_in} (signed in).")
         comment = st.text_input("Comment", key="cal.comment")
         if st.button("Approve", disabled=not by.strip(), key="cal.approve"):
             try:

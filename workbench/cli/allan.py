@@ -116,6 +116,9 @@ def _text_column(path: Path) -> np.ndarray:
 
 
 def _columns(df: pd.DataFrame, cols: list[str], path: Path) -> np.ndarray:
+    import numpy as np
+    import pandas as pd
+
     missing = [c for c in cols if c not in df.columns]
     if missing:
         raise AnalysisError(f"{path}: no column(s) {', '.join(missing)} (has {', '.join(map(str, df.columns))})")
