@@ -237,6 +237,14 @@ def runs_dir() -> Path:
     return Path("runs").resolve()
 
 
+def default_roots() -> list[Path]:
+    """Folders a typed session folder may lie in by default: the runs folder, a SQLite store's folder, the cwd."""
+    url = default_url()
+    store = [Path(url.removeprefix("sqlite:///")).resolve().parent] \
+        if url.startswith("sqlite:///") and url != "sqlite:///:memory:" else []
+    return [runs_dir(), *store, Path.cwd()]
+
+
 def _workbench_cli() -> list[str]:
     script = Path(sys.executable).with_name("workbench")
     return [str(script)] if script.exists() else [sys.executable, "-m", "workbench.cli"]
@@ -495,12 +503,12 @@ def session_picker(procedure: str | None = None, key: str = "session") -> Path |
     choice = st.selectbox("Session", ["(type a folder)", *dirs], index=1 if dirs else 0, key=key)
     if choice == "(type a folder)":
         typed = st.text_input("Session folder", key=f"{key}.typed",
-                              help="A folder inside the data roots (WORKBENCH_DATA_ROOTS; default the runs folder "
-                                   "and the working directory).")
+                              help="A folder inside the data roots (WORKBENCH_DATA_ROOTS; default the runs folder, "
+                                   "the SQLite store's folder and the working directory).")
         if not typed:
             return None
         try:
-            return roots.confined_folder(typed, roots.data_roots([runs_dir(), Path.cwd()]))
+            return roots.confined_folder(typed, roots.data_roots(default_roots()))
         except WorkbenchError as exc:
             show_error(exc, "session folder")
             return None

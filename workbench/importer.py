@@ -44,6 +44,7 @@ def load_profile(path: str | Path) -> dict:
     for key in ("columns", "site", "sample_rate_hz"):
         if key not in prof:
             raise ImportProfileError(f"{path}: missing key {key!r}")
+    _check_shape(prof, path)
     for target, spec in prof["columns"].items():
         if target not in _TARGETS:
             raise ImportProfileError(f"{path}: columns.{target}: unknown target (expected one of {', '.join(_TARGETS)})")
@@ -56,6 +57,40 @@ def load_profile(path: str | Path) -> dict:
     if missing:
         raise ImportProfileError(f"{path}: columns: no mapping for {', '.join(missing)}")
     return prof
+
+
+def _number(value, where: str, lo: float = -np.inf, hi: float = np.inf, optional: bool = False) -> None:
+    if value is None and optional:
+        return
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not lo <= value <= hi:
+        raise ImportProfileError(f"{where}: expected a finite number in {lo:g}..{hi:g}, got {value!r}")
+
+
+def _check_shape(prof: Mapping, path: Path) -> None:
+    """Sections are mappings and numbers are finite numbers, so reading the profile cannot fail later."""
+    def mapping(value, where: str, optional: bool = True) -> Mapping:
+        if value is None and optional:
+            return {}
+        if not isinstance(value, Mapping):
+            raise ImportProfileError(f"{path}: {where}: expected a mapping, got {value!r}")
+        return value
+    _number(prof["sample_rate_hz"], f"{path}: sample_rate_hz", 1e-6, 1e7)
+    site = mapping(prof["site"], "site", optional=False)
+    _number(site.get("latitude_deg"), f"{path}: site.latitude_deg", -90, 90)
+    for key in ("longitude_deg", "height_m", "table_zero_azimuth_deg"):
+        _number(site.get(key), f"{path}: site.{key}", -1e5, 1e5, optional=True)
+    for target, spec in mapping(prof["columns"], "columns", optional=False).items():
+        spec = mapping(spec, f"columns.{target}", optional=False)
+        if not isinstance(spec.get("column", ""), (str, int)) or isinstance(spec.get("column"), bool):
+            raise ImportProfileError(f"{path}: columns.{target}.column: expected a column name")
+        for key in ("scale", "offset"):
+            _number(spec.get(key), f"{path}: columns.{target}.{key}", -1e30, 1e30, optional=True)
+    for key in ("time", "reader", "unit"):
+        mapping(prof.get(key), key)
+    sections = mapping(prof.get("sections"), "sections")
+    for name, step in mapping(sections.get("steps"), "sections.steps").items():
+        mapping(step, f"sections.steps.{name}", optional=False)
+    mapping(sections.get("inline"), "sections.inline")
 
 
 def _read_table(path: Path, reader: Mapping) -> pd.DataFrame:

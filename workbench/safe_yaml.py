@@ -52,7 +52,10 @@ def load_yaml_text(text: str, source: str, max_bytes: int = MAX_BYTES, max_nodes
     """Parse one YAML document (safe types only) within the limits; ``error`` names ``source``."""
     if len(text.encode("utf-8", "surrogatepass")) > max_bytes:
         raise error(f"{source}: YAML document larger than {max_bytes} bytes")
-    loader = yaml.SafeLoader(text)
+    try:
+        loader = yaml.SafeLoader(text)
+    except yaml.YAMLError as exc:  # characters YAML does not allow
+        raise error(f"{source}: not valid YAML ({' '.join(str(exc).split())})") from None
     try:
         node = loader.get_single_node()
         if node is None:

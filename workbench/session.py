@@ -404,7 +404,10 @@ def validate_samples(df: pd.DataFrame, steps: Sequence[StepRecord], sample_rate_
     if len(df) == 0:
         raise SessionError(f"{source}: no samples")
     for col in [c for c in REQUIRED_COLUMNS + OPTIONAL_COLUMNS if c in df.columns]:
-        values = df[col].to_numpy(float)
+        try:
+            values = df[col].to_numpy(float)
+        except (TypeError, ValueError):
+            raise SessionError(f"{source}: column {col}: not numeric ({df[col].dtype} values)") from None
         bad = ~np.isfinite(values)
         if bad.any():
             row = int(np.argmax(bad))
