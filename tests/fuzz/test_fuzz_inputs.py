@@ -5,7 +5,7 @@ command-line options, each mutated by hypothesis and handed to the CLI entry fun
 in-process. The property (``assert_refused_cleanly``): the command succeeds, or it prints
 one line on stderr and exits 2 with no traceback, leaving the store and the session folders
 unchanged. Inputs that are certainly bad (a non-finite limit, NaN samples) must be refused.
-Bounded (5-50 examples a property, derandomised, no shrinking) to keep the suite well under two minutes.
+Bounded (5-20 examples a property, derandomised, no shrinking) to keep the suite well under two minutes.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from workbench.registry import procedures
 MANIFEST_KEYS = ["format", "id", "unit", "site", "sample_rate_hz", "procedure", "steps", "complete", "planned"]
 
 
-@settings(max_examples=8)
+@settings(max_examples=6)
 @given(data=st.data())
 def test_session_manifests(world, data):
     s = world.session_copy()
@@ -63,6 +63,7 @@ def test_truncated_or_incomplete_samples_are_refused(world, cut, drop):
     assert_refused_cleanly(world, ["analyze", "multiposition", s], [s], strict=True)
 
 
+@settings(max_examples=12)
 @given(data=st.data())
 def test_import_profiles(world, data):
     import yaml
@@ -75,7 +76,7 @@ def test_import_profiles(world, data):
     assert code == 0 or not out.exists()  # a refused import leaves no folder
 
 
-@settings(max_examples=15)
+@settings(max_examples=10)
 @given(text=st.one_of(TEXT, st.binary(max_size=200).map(lambda b: b.decode("latin-1"))))
 def test_import_profiles_as_raw_text(world, text):
     d = world.fresh("raw")
@@ -84,6 +85,7 @@ def test_import_profiles_as_raw_text(world, text):
     assert not (d / "out").exists()
 
 
+@settings(max_examples=12)
 @given(data=st.data())
 def test_calibration_files(world, data):
     doc = json.loads(world.set_file.read_text())
@@ -92,6 +94,7 @@ def test_calibration_files(world, data):
     assert_refused_cleanly(world, ["sets", "merge", f])
 
 
+@settings(max_examples=12)
 @given(data=st.data())
 def test_rig_configurations(world, data):
     d = world.fresh("rig")
@@ -103,7 +106,7 @@ LIMITS = [("turntable", k) for k in ("max_rate_dps", "max_accel_dps2", "encoder_
          [("chamber", "max_ramp_c_per_min")]
 
 
-@settings(max_examples=15)
+@settings(max_examples=10)
 @given(where=st.sampled_from(LIMITS), value=st.one_of(NON_FINITE, st.floats(max_value=0.0), HOSTILE_TEXT))
 def test_a_bad_limit_is_always_refused(world, where, value):
     d = world.fresh("limit")
@@ -144,7 +147,7 @@ def argvs(draw) -> list[str]:
     return draw(st.lists(HOSTILE_TEXT, min_size=1, max_size=4))
 
 
-@settings(max_examples=30)
+@settings(max_examples=20)
 @given(argv=argvs())
 def test_command_line_options(world, argv):
     assert_refused_cleanly(world, argv, [world.session])
