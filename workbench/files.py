@@ -1,7 +1,8 @@
 """File helpers shared by every layer: atomic text writes and file digests.
 
 :func:`atomic_write_text` (temp file in the same folder + atomic rename: a reader never sees
-half a file) and :func:`file_sha256` (streamed SHA-256 of a file's bytes, for provenance).
+half a file, with the permissions the user's :func:`umask` gives) and :func:`file_sha256`
+(streamed SHA-256 of a file's bytes, for provenance).
 """
 
 from __future__ import annotations
@@ -11,7 +12,18 @@ import os
 import tempfile
 from pathlib import Path
 
-from workbench.staging import umask
+
+def umask() -> int:
+    """The process umask (e.g. 0o022), read from /proc where it exists so it is never changed."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("Umask:"):
+                return int(line.split()[1], 8)
+    except (OSError, ValueError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
 
 def atomic_write_text(path: Path, text: str) -> Path:

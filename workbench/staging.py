@@ -2,8 +2,7 @@
 
 :func:`staged_folder` writes into a hidden temp folder beside the target and renames it
 into place when the block succeeds (removing it when it fails), so a failed command leaves
-no half-written folder; it refuses a target that already holds something. :func:`umask`
-is the process's file-creation mask (read without changing it where the OS allows).
+no half-written folder; it refuses a target that already holds something.
 """
 
 from __future__ import annotations
@@ -16,19 +15,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from workbench.errors import WorkbenchError
-
-
-def umask() -> int:
-    """The process umask (e.g. 0o022), read from /proc where it exists so it is never changed."""
-    try:
-        for line in Path("/proc/self/status").read_text().splitlines():
-            if line.startswith("Umask:"):
-                return int(line.split()[1], 8)
-    except (OSError, ValueError):
-        pass
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
+from workbench.files import umask
 
 
 def refuse_existing(target: Path, what: str = "folder") -> None:
