@@ -57,11 +57,11 @@ def test_batch_with_failed_sessions_exits_non_zero(db, tmp_path, capsys):
     assert "0 analysed, 1 failed" in capsys.readouterr().out
 
 
-def _steps(manifest: Path) -> int:
-    try:
-        return len(json.loads(manifest.read_text())["steps"])
-    except (FileNotFoundError, json.JSONDecodeError, KeyError):
-        return 0
+def _steps(session: Path) -> int:
+    """Steps recorded so far (the runner's step log)."""
+    from workbench.session import step_log
+
+    return len(step_log(session))
 
 
 def test_ctrl_c_exits_130_after_making_the_rig_safe_and_the_hint_resumes(tmp_path):
@@ -70,7 +70,7 @@ def test_ctrl_c_exits_130_after_making_the_rig_safe_and_the_hint_resumes(tmp_pat
     cmd = [sys.executable, "-m", "workbench", "run", "multiposition", "--out", str(out), "-o", "dwell_s=20"]
     p = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
     deadline = time.time() + 120
-    while time.time() < deadline and _steps(out / "session" / "session.json") < 2 and p.poll() is None:
+    while time.time() < deadline and _steps(out / "session") < 2 and p.poll() is None:
         time.sleep(0.05)
     p.send_signal(signal.SIGINT)
     _, err = p.communicate(timeout=120)
