@@ -185,7 +185,8 @@ class CampaignResult:
 
 def run_campaign(spec, truth, cfg: RigConfig, seed: int, out_dir: Path, store=None,
                  progress_for: Callable[[str], Progress | None] | None = None,
-                 only: list[str] | None = None, options: Mapping[str, Mapping] | None = None) -> CampaignResult:
+                 only: list[str] | None = None, options: Mapping[str, Mapping] | None = None,
+                 figures: bool = True) -> CampaignResult:
     """Run every calibration procedure that applies to the unit, in order, and merge their sets.
 
     Each procedure records into ``out_dir/<name>/session`` and writes its results and figures to
@@ -196,7 +197,7 @@ def run_campaign(spec, truth, cfg: RigConfig, seed: int, out_dir: Path, store=No
     set temperature run at the chamber's ambient, models with a reference temperature refer to
     it, and later procedures take the noise terms of earlier ones (:func:`noise_options`; they
     go through the procedure's declared-option check like any other); options given explicitly
-    win. ``campaign.json`` lists the analysis options so set.
+    win. ``campaign.json`` lists the analysis options so set. ``figures=False`` draws none.
     """
     procs = [p for p in campaign_procedures(set(spec.triads)) if applies(p, spec) and not needs_calibration(p)]
     if only:
@@ -226,7 +227,7 @@ def run_campaign(spec, truth, cfg: RigConfig, seed: int, out_dir: Path, store=No
         analysis.update(analysis_given)
         validate(proc, analysis, "analysis")  # the noise options pass the declared-option check too
         analyses[proc.NAME] = analysis
-        results[proc.NAME] = run_analysis(proc, session, analysis, pdir, None)
+        results[proc.NAME] = run_analysis(proc, session, analysis, pdir, None, figures)
     sets = [r.calibration for r in results.values() if r.calibration is not None]
     if not sets:
         raise ProcedureError("the campaign produced no calibration set")

@@ -139,7 +139,7 @@ def write_outputs(result: ProcedureResult, out_dir: Path, figures: Mapping | Non
         for name, fig in figures.items():
             path = fig_dir / f"{name}.png"
             tmp = fig_dir / f".{name}.tmp.png"
-            fig.savefig(tmp, dpi=110, bbox_inches="tight")
+            fig.savefig(tmp, dpi=110)  # laid out once when drawn (constrained layout), not re-fitted here
             tmp.replace(path)
             plt.close(fig)
             written.append(path)
@@ -147,17 +147,18 @@ def write_outputs(result: ProcedureResult, out_dir: Path, figures: Mapping | Non
 
 
 def run_analysis(proc, session: Session, options: Mapping | None = None, out_dir: Path | None = None,
-                 store=None) -> ProcedureResult:
+                 store=None, figures: bool = True) -> ProcedureResult:
     """Analyse ``session`` with procedure module ``proc``; write outputs and store, all or nothing.
 
     Files go to ``out_dir`` (each written atomically) only after the analysis succeeded; the
     store receives the session record, the result and its calibration set last, so a failed
-    analysis leaves both untouched.
+    analysis leaves both untouched. ``figures=False`` writes no figures (batch work: they can
+    be drawn later from ``result.json``'s result).
     """
     result = with_session_provenance(proc.analyze(session, **dict(options or {})), session)
     result = replace(result, options=used_options(proc, options))
     if out_dir is not None:
-        figs = proc.figures(result) if hasattr(proc, "figures") else None
+        figs = proc.figures(result) if figures and hasattr(proc, "figures") else None
         write_outputs(result, Path(out_dir), figs)
     if store is not None:
         def write() -> None:  # one transaction: the session record, the result and its set, or nothing

@@ -138,7 +138,9 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
                                    "'workbench procedures PROC' lists them; a campaign takes PROC.key=value)."),
         calibration: str = typer.Option(None, "--calibration", help="Calibration set (id or JSON) for validations."),
         no_store: bool = typer.Option(False, "--no-store", help="Leave the store untouched."),
-        dry_run: bool = typer.Option(False, "--dry-run", help="Show the sequence and stop.")) -> None:
+        dry_run: bool = typer.Option(False, "--dry-run", help="Show the sequence and stop."),
+        no_figures: bool = typer.Option(False, "--no-figures", help="Draw no figures (batch work; results and "
+                                                                     "calibration sets as usual).")) -> None:
     """Record a procedure's sequence on the rig, analyse it, store the result and print a summary."""
     from workbench.grades import draw_unit, load_spec
     from workbench.jobs import record_procedure, resume_procedure, run_campaign
@@ -153,7 +155,7 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
             session = resume_procedure(resume, _tracker(bar, "resume"))
         proc = procedure(session.procedure)
         _analyse_and_report(proc, session, resume.parent if resume.name == "session" else resume, store, calibration,
-                            {**recorded_analysis_options(session), **parse_options(option)})
+                            {**recorded_analysis_options(session), **parse_options(option)}, not no_figures)
         return
     spec = load_spec(unit)
     cfg = load_rig_config(rig)
@@ -175,20 +177,22 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
         totals = _step_totals(spec, campaign_options)
         with _progress_bar() as bar:
             res = run_campaign(spec, truth, cfg, seed, out_dir, store,
-                               lambda name: _tracker(bar, name, totals.get(name)), options=campaign_options)
+                               lambda name: _tracker(bar, name, totals.get(name)), options=campaign_options,
+                               figures=not no_figures)
         for name, r in res.results.items():
             out.print(name, style="bold")
             _print_result(r, out_dir / name)
         out.print(styled("calibration set", "bold green", f" {res.calibration.id} -> {out_dir / 'calibration.json'}"),
                   soft_wrap=True)
-        out.print(f"figures under {out_dir}/*/figures; store: {store.url if store else 'not used (--no-store)'}",
+        out.print(f"figures {'not drawn' if no_figures else f'under {out_dir}/*/figures'}; "
+                  f"store: {store.url if store else 'not used (--no-store)'}",
                   soft_wrap=True)
         return
     proc = procedure(procedure_name)
     # a number-valued option must be a number (one that also takes a word, e.g. 'auto', is checked below)
     options = parse_options(option, {o.name: o.default for o in declarations(proc) if not o.words})
     if getattr(proc, "DRIVE", False):  # recorded on the simulated vehicle, not on the turntable
-        _run_drive(proc, spec, truth, cfg, seed, out_dir, options, store, calibration, dry_run)
+        _run_drive(proc, spec, truth, cfg, seed, out_dir, options, store, calibration, dry_run, not no_figures)
         return
     seq_options, analysis_options = split(proc, options)  # refuses a misspelt option before anything runs
     seq = proc.sequence(spec, **seq_options)
@@ -204,7 +208,7 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
     with _interruptible(out_dir / "session", proc.NAME), _progress_bar() as bar:
         session = record_procedure(proc, spec, truth, cfg, seed, out_dir / "session", options,
                                    _tracker(bar, proc.NAME, len(seq.expand())))
-    _analyse_and_report(proc, session, out_dir, store, cal, analysis_options)
+    _analyse_and_report(proc, session, out_dir, store, cal, analysis_options, not no_figures)
 
 
 def _step_totals(spec, campaign_options: dict[str, dict]) -> dict[str, int]:
@@ -231,7 +235,7 @@ def _campaign_options(options: dict) -> dict[str, dict]:
 
 
 def _run_drive(proc, spec, truth, cfg, seed: int, out_dir: Path | None, options: dict, store, calibration,
-               dry_run: bool) -> None:
+               dry_run: bool, figures: bool = True) -> None:
     """Drive the simulated vehicle for a land-navigation validation, then analyse the drive."""
     from workbench.procedure import run_analysis
 
@@ -246,7 +250,7 @@ def _run_drive(proc, spec, truth, cfg, seed: int, out_dir: Path | None, options:
     if cal is None:
         cal = _calibrate_first(spec, truth, cfg, seed, out_dir)
     session = proc.record_drive(truth, seed, out_dir / "session", **seq_options)
-    result = run_analysis(proc, session, {**analysis_options, "calibration": cal}, out_dir, store)
+    result = run_analysis(proc, session, {**analysis_options, "calibration": cal}, out_dir, store, figures)
     _print_result(result, out_dir)
 
 
@@ -269,13 +273,14 @@ def _calibrate_first(spec, truth, cfg, seed, out_dir: Path):
     return res.calibration
 
 
-def _analyse_and_report(proc, session, out_dir: Path, store, calibration, analysis_options=None) -> None:
+def _analyse_and_report(proc, session, out_dir: Path, store, calibration, analysis_options=None,
+                        figures: bool = True) -> None:
     from workbench.procedure import run_analysis
 
     options = dict(analysis_options or {})  # checked again by the procedure's analyze()
     if calibration is not None:
         options["calibration"] = _load_calibration(calibration) if isinstance(calibration, str) else calibration
-    result = run_analysis(proc, session, options, out_dir, store)
+    result = run_analysis(proc, session, options, out_dir, store, figures)
     _print_result(result, out_dir)
     if result.calibration is not None:
         out.print(f"calibration set {result.calibration.id}"
@@ -288,7 +293,8 @@ def analyze(procedure_name: str = typer.Argument(..., metavar="PROCEDURE"),
             no_store: bool = typer.Option(False, "--no-store", help="Leave the store untouched."),
             option: list[str] = typer.Option(None, "--option", "-o", help="Analysis option key=value."),
             calibration: str = typer.Option(None, "--calibration", help="Calibration set for validations."),
-            figures: Path = typer.Option(None, "--figures", help="Write result.json and figures/ into this folder.")
+            figures: Path = typer.Option(None, "--figures", help="Write result.json and figures/ into this folder."),
+            no_figures: bool = typer.Option(False, "--no-figures", help="With --figures: write result.json only.")
             ) -> None:
     """Analyse any session in the workbench format and store its calibration set (or result)."""
     from workbench.procedure import run_analysis
@@ -301,7 +307,7 @@ def analyze(procedure_name: str = typer.Argument(..., metavar="PROCEDURE"),
     session = load_session(session_dir)
     if calibration is not None:
         options["calibration"] = _load_calibration(calibration)
-    result = run_analysis(proc, session, options, figures, None if no_store else Store())
+    result = run_analysis(proc, session, options, figures, None if no_store else Store(), not no_figures)
     if out_file is not None:
         from workbench.calset import atomic_write_text
         from workbench.procedure import result_json

@@ -24,10 +24,10 @@ from workbench.analysis.allan_terms import term_text  # noqa: E402
 DEV_UNIT = {"gyro": "deg/h", "accel": "ug", None: "1"}
 def plot_triads(analyses: Mapping[str, AllanAnalysis]) -> plt.Figure:
     """One log-log panel per triad (``{"gyro": ..., "accel": ...}``)."""
-    fig, axes = plt.subplots(1, len(analyses), figsize=(6.2 * len(analyses), 4.8), squeeze=False)
+    fig, axes = plt.subplots(1, len(analyses), figsize=(6.2 * len(analyses), 4.8), squeeze=False,
+                             layout="constrained")
     for ax, (name, an) in zip(axes[0], analyses.items()):
         plot_panel(an, ax, title=name)
-    fig.tight_layout()
     return fig
 
 

@@ -25,7 +25,7 @@ def plot_cloud(cal: MagCalibration) -> plt.Figure:
     """Raw vs calibrated magnetometer points (µT) in the xy, xz and yz planes."""
     raw = cal.points.mag
     calibrated = cal.fit.compensate(raw)
-    fig, axes = plt.subplots(1, 3, figsize=(13, 4.4))
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4.4), layout="constrained")
     circle = np.linspace(0, 2 * np.pi, 361)
     r = cal.fit.field_norm_ut
     for ax, (i, j) in zip(axes, _PLANES):
@@ -39,13 +39,12 @@ def plot_cloud(cal: MagCalibration) -> plt.Figure:
     axes[0].legend(loc="best", fontsize=8)
     fig.suptitle(f"Magnetometer points, method {cal.fit.method} "
                  f"(coverage {cal.quality.coverage:.0%}, {len(cal.points)} points)")
-    fig.tight_layout()
     return fig
 
 
 def plot_heading_error(cal: MagCalibration) -> plt.Figure:
     """Heading error (°) against the table azimuth (°): raw, plain algebraic fit, chosen fit."""
-    fig, ax = plt.subplots(figsize=(9, 4.5))
+    fig, ax = plt.subplots(figsize=(9, 4.5), layout="constrained")
     if cal.heading is None:
         ax.text(0.5, 0.5, "no attitude: heading error not evaluated", ha="center", transform=ax.transAxes)
         return fig
@@ -67,5 +66,4 @@ def plot_heading_error(cal: MagCalibration) -> plt.Figure:
     ax.legend(fontsize=8)
     src = "estimated as mean offset" if cal.heading.declination_estimated else "fitted or given"
     ax.set_title(f"Tilt-compensated heading error (declination {np.degrees(cal.heading.declination):.2f}°, {src})")
-    fig.tight_layout()
     return fig

@@ -22,7 +22,7 @@ _STYLE = {"raw": {"color": "tab:red", "alpha": 0.8}, "calibrated": {"color": "ta
 
 
 def _axes3(title: str, ylabel: str, names=("x", "y", "z")):
-    fig, axes = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
+    fig, axes = plt.subplots(3, 1, figsize=(8, 7), sharex=True, layout="constrained")
     fig.suptitle(title)
     for ax, n in zip(axes, names):
         ax.set_ylabel(f"{n} [{ylabel}]")

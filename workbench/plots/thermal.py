@@ -34,7 +34,7 @@ def display_unit(quantity: str) -> str:
 def quantity_figure(fit: PolyFit):
     """Measured values and the fitted temperature model of ``fit``, one panel per axis."""
     unit = display_unit(fit.quantity)
-    fig, axes = plt.subplots(1, 3, figsize=(12, 3.8), sharex=True)
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.8), sharex=True, layout="constrained")
     grid = np.linspace(fit.temperature_c.min(), fit.temperature_c.max(), 200)
     for ax_i, ax in enumerate(axes):
         for d in (1, -1, 0):
@@ -54,14 +54,13 @@ def quantity_figure(fit: PolyFit):
         ax.grid(alpha=0.3)
     axes[0].set_ylabel(f"{fit.quantity} ({label(unit)})")
     axes[0].legend(fontsize=7)
-    fig.tight_layout()
     return fig
 
 
 def residual_figure(fit: PolyFit):
     """Residuals after compensation (measured minus model) against the unit temperature."""
     unit = display_unit(fit.quantity)
-    fig, axes = plt.subplots(1, 3, figsize=(12, 3.4), sharex=True)
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.4), sharex=True, layout="constrained")
     for ax_i, ax in enumerate(axes):
         for d in (1, -1, 0):
             sel = fit.direction == d
@@ -75,14 +74,13 @@ def residual_figure(fit: PolyFit):
         ax.grid(alpha=0.3)
     axes[0].set_ylabel(f"residual after compensation ({label(unit)})")
     axes[0].legend(fontsize=7)
-    fig.tight_layout()
     return fig
 
 
 def order_figure(fit: PolyFit):
     """Held-out RMS residual (log scale) against polynomial order, per axis; chosen order marked."""
     unit = display_unit(fit.quantity)
-    fig, ax = plt.subplots(figsize=(6, 3.8))
+    fig, ax = plt.subplots(figsize=(6, 3.8), layout="constrained")
     orders = np.array(fit.cv_orders)
     for ax_i in range(3):
         line = ax.semilogy(orders, to_unit(fit.cv_rms[:, ax_i], unit), "o-", label=f"{'xyz'[ax_i]}")[0]
@@ -96,7 +94,6 @@ def order_figure(fit: PolyFit):
     ax.set_title(f"{fit.quantity}: cross-validation")
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=7)
-    fig.tight_layout()
     return fig
 
 

@@ -36,7 +36,7 @@ def plot_residuals(fit: TriadFit):
     """Per-step residuals (reference subtracted) before and after compensation, per axis."""
     r = fit.residuals
     unit = _residual_unit(fit)
-    fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
+    fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True, layout="constrained")
     x = np.arange(len(r))
     for ax, when in zip(axes, ("before", "after")):
         for k, a in enumerate(_XYZ):
@@ -53,7 +53,6 @@ def plot_residuals(fit: TriadFit):
     axes[0].legend(ncol=3, fontsize=8)
     axes[0].set_title(f"{fit.triad}: residual per step (reference removed); red = not used (misfit or motion)")
     axes[1].set_xticks(x, [f"{s}\n{lab}" for s, lab in zip(r["step"], r["label"])], rotation=60, fontsize=7)
-    fig.tight_layout()
     return fig
 
 
@@ -71,7 +70,7 @@ def _rate_rows(fit: TriadFit):
 def plot_rate_tracking(fit: TriadFit, full_scale: float):
     """Compensated gyro rate vs table (encoder) rate per rate step, and the residual in % FS."""
     axis, rate, before, after = _rate_rows(fit)
-    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(8, 6.5), sharex=True)
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(8, 6.5), sharex=True, layout="constrained")
     for k, (a, mk) in enumerate(zip(_XYZ, "os^")):
         sel = axis == k
         ax1.plot(to_unit(rate[sel], "deg/s"), to_unit(rate[sel] + after[sel], "deg/s"), mk, ms=7 - 2 * k,
@@ -90,7 +89,6 @@ def plot_rate_tracking(fit: TriadFit, full_scale: float):
     ax2.legend(fontsize=7, ncol=3)
     for ax in (ax1, ax2):
         ax.grid(alpha=0.3)
-    fig.tight_layout()
     return fig
 
 
@@ -100,7 +98,7 @@ def plot_scale_factor_vs_rate(fit: TriadFit):
     offsets = np.asarray(fit.notes.get("step_offsets", np.zeros((len(rate), 3))))
     idx = np.arange(len(rate))
     raw_sf = (before - offsets[idx, axis]) / rate
-    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(8, 6.5), sharex=True)
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(8, 6.5), sharex=True, layout="constrained")
     for k, (a, mk) in enumerate(zip(_XYZ, "os^")):
         sel = axis == k
         ax1.plot(to_unit(rate[sel], "deg/s"), raw_sf[sel] * 1e6, mk, ms=5, label=f"gyro {a}")
@@ -113,7 +111,6 @@ def plot_scale_factor_vs_rate(fit: TriadFit):
         ax.axhline(0, color="k", lw=0.6)
         ax.legend(fontsize=8, ncol=3)
         ax.grid(alpha=0.3)
-    fig.tight_layout()
     return fig
 
 
@@ -121,7 +118,7 @@ def plot_turn_checks(checks: list):
     """Hand-made turn checks (°): integrated angle minus nominal, closure, wobble, tilt, motion around."""
     names = ["angle - nominal", "closure", "wobble rms", "backward", "axis tilt", "gravity change",
              "motion before", "motion after"]
-    fig, ax = plt.subplots(figsize=(9, 4.5))
+    fig, ax = plt.subplots(figsize=(9, 4.5), layout="constrained")
     width = 0.8 / max(1, len(checks))
     for k, c in enumerate(checks):
         vals = [abs(c.angle) - np.linalg.norm(c.nominal), c.closure, c.wobble_rms, c.backward, c.axis_tilt,
@@ -133,5 +130,4 @@ def plot_turn_checks(checks: list):
     ax.set_title("hand-made turns: how far each is from the assumed 360° turn")
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3, axis="y")
-    fig.tight_layout()
     return fig
