@@ -34,7 +34,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from procedures.multiposition import fit_summary, result_dict
+from procedures._triad import fit_summary, result_dict
 from workbench.analysis.gyro_fit import fit_gyro_turns, turn_checks
 from workbench.analysis.turntable import TriadFit, fit_accel, fit_gyro_static
 from workbench.calset import CalibrationSet

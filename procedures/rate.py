@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from procedures.multiposition import fit_summary, result_dict
+from procedures._triad import fit_summary, result_dict
 from workbench.analysis.turntable import fit_gyro_rate
 from workbench.calset import CalibrationSet
 from workbench.errors import ProcedureError

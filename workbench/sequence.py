@@ -22,6 +22,7 @@ from typing import Any, Union
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from workbench.angles import wrap_2pi as _wrap
 from workbench.errors import RigLimitError
 
 _NAMED_MOUNTS = {
@@ -321,10 +322,6 @@ class Sequence:
 def _positive(name: str, what: str, value: float) -> None:
     if not (value is not None and np.isfinite(value) and value > 0):
         raise RigLimitError(f"sequence {name}: {what} must be positive (got {value})")
-
-
-def _wrap(angle: float) -> float:
-    return float(np.mod(angle, 2 * np.pi))
 
 
 def with_options(seq: Sequence, **options) -> Sequence:

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from workbench.analysis.northfinding_theory import FLICKER_AVAR
+from workbench.allan_model import FLICKER_AVAR
 from workbench.analysis.position_check import MeanNoise
 from workbench.analysis.turntable_noise import bias_wander, hidden_bias_instability
 

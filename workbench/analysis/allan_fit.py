@@ -39,19 +39,19 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import nnls
 
+from workbench.allan_model import FLICKER_AVAR, avar_basis
 from workbench.analysis.allan_ci import DeviationCI, chi2_ppf
 
 TERMS = ("quantization", "white", "bias_instability", "rrw", "rate_ramp")
-FLICKER = 2.0 * np.log(2.0) / np.pi  # AVAR per B^2; ADEV floor 0.664 B
+FLICKER = FLICKER_AVAR  # AVAR per B^2; ADEV floor 0.664 B (workbench.allan_model)
 CORRELATION = 2.0  # overlapping AVAR points at octave taus share about half their information:
 # weighted chi-squared differences are divided by this before model comparison
 _IRLS_ITER = 30
 
 
 def basis(tau: np.ndarray) -> np.ndarray:
-    """AVAR basis (K, 5) at taus (s): 3/tau^2, 1/tau, 2 ln2/pi, tau/3, tau^2/2."""
-    tau = np.asarray(tau, float)
-    return np.stack([3.0 / tau ** 2, 1.0 / tau, np.full_like(tau, FLICKER), tau / 3.0, tau ** 2 / 2.0], axis=1)
+    """AVAR basis (K, 5) at taus (s): 3/tau^2, 1/tau, 2 ln2/pi, tau/3, tau^2/2 (:func:`workbench.allan_model.avar_basis`)."""
+    return avar_basis(np.atleast_1d(np.asarray(tau, float)))
 
 
 @dataclass(frozen=True)

@@ -24,16 +24,13 @@ from scipy.spatial.transform import Rotation
 
 from workbench.analysis.mag_ellipsoid import fit_ellipsoid, fit_sphere
 from workbench.analysis.mag_fit import MagFit, build_fit, solve
+from workbench.angles import wrap_pi as _wrap
 from workbench.errors import AnalysisError
 
 
 def down_direction(accel: np.ndarray) -> np.ndarray:
     """Unit down vector (N, 3) in the IMU body frame from static specific force (N, 3) m/s^2 (``d = -f/|f|``)."""
     return -accel / np.linalg.norm(accel, axis=1, keepdims=True)
-
-
-def _wrap(a):
-    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
 
 
 def fit_dip(mag: np.ndarray, accel: np.ndarray, field_norm_ut: float | None = None, robust: bool | str = False,

@@ -22,11 +22,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from workbench.angles import wrap_pi as _wrap
+
 _PITCH_LIMIT = np.radians(80.0)  # beyond this the heading of the x axis is ill-defined
-
-
-def _wrap(a):
-    return (np.asarray(a, float) + np.pi) % (2 * np.pi) - np.pi
 
 
 def heading(field_body: np.ndarray, down_body: np.ndarray) -> np.ndarray:

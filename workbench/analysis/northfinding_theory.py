@@ -26,10 +26,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from workbench.allan_model import FLICKER_AVAR, allan_deviation  # noqa: F401  (FLICKER_AVAR re-exported)
 from workbench.earth import EARTH_RATE
 from workbench.errors import AnalysisError
 
-FLICKER_AVAR = 2.0 * np.log(2.0) / np.pi  # IEEE 952: AVAR of bias instability = (2 ln2 / pi) B^2
 POLE_MARGIN_DEG = 1.0  # deg: no north-finding within this distance of a pole
 
 
@@ -82,10 +82,7 @@ def adev_model(tau: float | np.ndarray, arw: float | np.ndarray = 0.0, bias_inst
     ``bias_instability`` B (rad/s, the coefficient: the ADEV floor is 0.664 B), ``rrw`` K
     (rad/s/√s) and ``quantization`` Q (rad). Arguments broadcast (e.g. (3,) per axis).
     """
-    tau = np.asarray(tau, float)
-    avar = (np.asarray(arw, float) ** 2 / tau + FLICKER_AVAR * np.asarray(bias_instability, float) ** 2
-            + np.asarray(rrw, float) ** 2 * tau / 3.0 + 3.0 * np.asarray(quantization, float) ** 2 / tau**2)
-    return np.sqrt(avar)
+    return allan_deviation(tau, arw, bias_instability, rrw, quantization)
 
 
 def pair_azimuth_sigma(adev_x: float, latitude: float, adev_y: float | None = None,

@@ -15,7 +15,7 @@ from scipy.optimize import brentq
 from scipy.stats import chi2 as chi2_dist
 
 from workbench import units
-from workbench.analysis.northfinding_theory import FLICKER_AVAR
+from workbench.allan_model import FLICKER_AVAR
 from workbench.analysis.position_check import MeanNoise, StepStats, static_mean_variance
 from workbench.analysis.turntable_fit import AXES, POOL_DOF, TriadFit, _AxisFit
 from workbench.errors import AnalysisError

@@ -41,6 +41,7 @@ import numpy as np
 import pandas as pd
 from scipy.signal import lfilter
 
+from workbench.angles import wrap_pi as _wrap
 from workbench.earth import EARTH_RATE, normal_gravity, radii
 from workbench.errors import AnalysisError
 from workbench.nav.compensate import ImuSamples, ProcessNoise
@@ -105,10 +106,6 @@ class LnsResult:
     resets: list = field(default_factory=list)
     t_heading: float | None = None
     notes: list = field(default_factory=list)
-
-
-def _wrap(a):
-    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
 
 
 def _course_over_ground(gps: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:

@@ -25,6 +25,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from workbench.angles import wrap_pi as _wrap
+
 
 def _prefix_product(m: np.ndarray) -> np.ndarray:
     """Cumulative products ``m[0], m[0] @ m[1], ..., m[0] @ ... @ m[n-1]`` of (n, 3, 3) matrices.
@@ -97,10 +99,6 @@ def euler_rph(att: Rotation) -> np.ndarray:
         warnings.simplefilter("ignore", UserWarning)
         zyx = att.as_euler("ZYX")
     return zyx[..., ::-1]
-
-
-def _wrap(a: np.ndarray) -> np.ndarray:
-    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
 
 
 def attitude_errors(estimate: Rotation, truth: Rotation) -> np.ndarray:

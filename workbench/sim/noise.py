@@ -28,7 +28,8 @@ from functools import lru_cache
 import numpy as np
 from scipy.signal import sosfilt
 
-FLICKER_AVAR = 2.0 * np.log(2.0) / np.pi  # AVAR of flicker noise per B², IEEE 952 (ADEV = 0.664 B)
+from workbench.allan_model import FLICKER_AVAR
+
 FLICKER_TAU_MAX_S = 1.0e5  # s, upper end of the flat ADEV of the bias-instability process
 FLICKER_SECTIONS_PER_DECADE = 2
 
