@@ -90,7 +90,9 @@ def test_order_five_projected_to_cubic_within_the_reported_deviation():
     temps = np.linspace(*T_RANGE, 200)
     err = px4_thermal(p, "G", temps) - (model.bias + model.thermal.bias_shift(temps))
     (line,) = [d for d in exp.dropped if "order 5" in d]
-    reported = float(line.split("max deviation ")[1].split()[0]) * np.pi / 180  # deg/s -> rad/s
+    value, unit = line.split("max deviation ")[1].split()[:2]
+    assert unit == "°/h)"  # the unit vocabulary's gyro bias unit
+    reported = float(value) * np.pi / 180 / 3600  # °/h -> rad/s
     assert np.abs(err).max() <= 1.01 * reported + TOL * RANGES["gyro"]
 
 

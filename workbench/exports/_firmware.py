@@ -14,9 +14,9 @@ from scipy.spatial.transform import Rotation
 
 from workbench.calset import CalibrationSet
 from workbench.model import TriadModel
-from workbench.units import to_unit
+from workbench.units import label, to_unit, unit_of
 
-LAB = {"gyro": "deg/s", "accel": "mg", "mag": "uT"}
+LAB = {triad: unit_of(triad, "bias") for triad in ("gyro", "accel", "mag")}  # the unit vocabulary
 
 
 def fmt(value: float) -> str:
@@ -52,7 +52,7 @@ def bias_cubic(calset: CalibrationSet, triad: str, dropped: list[str]) -> tuple[
     dev = np.abs(vander @ cubic.T - full).max()
     dropped.append(f"{triad}: bias polynomial of order {poly.shape[1] - 1} > 3 replaced by its least-squares cubic "
                    f"over {t_min:.1f}..{t_max:.1f} °C (max deviation {to_unit(dev, LAB[triad]):.3g} "
-                   f"{LAB[triad]})")
+                   f"{label(LAB[triad])})")
     return cubic, th.t_ref_c, t_min, t_max
 
 
