@@ -9,7 +9,13 @@
    child's peak RSS and throughput, against the in-memory path on ``--memory-n`` samples
    (default min(stream-n, 1e8)) also in a child process.
 
-Run: ``python benchmarks/allan_speed.py [--n 1e7] [--stream-n 1e9] [--memory-n 1e8] [--dir /tmp]``.
+3. The whole command (``--command-n`` samples x 3 axes in a Parquet file, default 0 = skip):
+   ``workbench allan FILE --rate 100 --taus octave --out curves.csv`` (start-up, read, OADEV,
+   intervals, fit, table, CSV) against a plain allantools script (read the same Parquet,
+   ``oadev`` per axis with its default error bars, write a CSV), each in a fresh process,
+   interleaved ``--repeat`` times; medians of wall time and peak RSS.
+
+Run: ``python benchmarks/allan_speed.py [--n 1e7] [--stream-n 1e9] [--memory-n 1e8] [--command-n 1e7] [--dir /tmp]``.
 """
 
 from __future__ import annotations
@@ -113,15 +119,71 @@ def bench_stream(n: int, memory_n: int, directory: Path) -> None:
         print(f"  throughput ratio in-memory / streaming: {(memory_n / m['s']) / (n / s['s']):.2f}")
 
 
+_ALLANTOOLS_SCRIPT = """
+import sys
+import allantools, pandas as pd
+df = pd.read_parquet(sys.argv[1])
+rows = []
+for c in df.columns:
+    t, d, e, n = allantools.oadev(df[c].to_numpy(), 100.0, "freq", "octave")
+    rows += [(c, *v) for v in zip(t, d, e, n)]
+pd.DataFrame(rows, columns=["column", "tau", "dev", "err", "n"]).to_csv(sys.argv[2], index=False)
+"""
+
+_TIMED = """
+import resource, subprocess, sys, time
+t0 = time.perf_counter()
+subprocess.run(sys.argv[1:], check=True, stdout=subprocess.DEVNULL)
+r = resource.getrusage(resource.RUSAGE_CHILDREN)
+print(time.perf_counter() - t0, r.ru_maxrss / 1024, r.ru_utime + r.ru_stime)
+"""
+
+
+def _timed(cmd: list[str]) -> tuple[float, float, float]:
+    """Wall time (s), peak RSS (MB) and CPU time (s) of ``cmd`` in a fresh process."""
+    out = subprocess.run([sys.executable, "-c", _TIMED, *cmd], capture_output=True, text=True, check=True)
+    wall, rss, cpu = out.stdout.split()
+    return float(wall), float(rss), float(cpu)
+
+
+def bench_command(n: int, repeat: int, directory: Path) -> None:
+    import pandas as pd
+
+    with tempfile.TemporaryDirectory(dir=directory, prefix="allan-cmd-") as tmp:
+        path = Path(tmp) / "rec.parquet"
+        rng = np.random.default_rng(3)
+        pd.DataFrame(1e-3 * rng.standard_normal((n, 3)), columns=["gx", "gy", "gz"]).to_parquet(path)
+        size_mb = path.stat().st_size / 1e6
+        wb = [sys.executable, "-m", "workbench", "allan", str(path), "--rate", "100", "--taus", "octave",
+              "--out", str(Path(tmp) / "wb.csv")]
+        at = [sys.executable, "-c", _ALLANTOOLS_SCRIPT, str(path), str(Path(tmp) / "at.csv")]
+        _timed(wb)  # compile / warm the caches once
+        res = {"workbench": [], "allantools": []}
+        for _ in range(repeat):
+            res["workbench"].append(_timed(wb))
+            res["allantools"].append(_timed(at))
+        print(f"whole command, {n:.3g} samples x 3 axes, octave ({size_mb:.0f} MB Parquet), medians of {repeat}:")
+        med = {k: np.median(np.array(v), axis=0) for k, v in res.items()}
+        for k, (wall, rss, cpu) in med.items():
+            print(f"  {k:10s}: {wall:7.2f} s wall, {cpu:7.2f} s CPU, peak RSS {rss:6.0f} MB")
+        print(f"  ratio allantools / workbench: {med['allantools'][0] / med['workbench'][0]:.2f}x wall, "
+              f"{med['allantools'][2] / med['workbench'][2]:.2f}x CPU (the CPU ratio is the one to read on a "
+              "loaded machine)")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=float, default=1e7, help="samples per axis for the allantools comparison")
     ap.add_argument("--stream-n", type=float, default=1e9, help="samples of the streamed Parquet file (0: skip)")
     ap.add_argument("--memory-n", type=float, default=None, help="samples of the in-memory comparison run")
     ap.add_argument("--dir", type=Path, default=Path(tempfile.gettempdir()), help="folder for the temporary files")
+    ap.add_argument("--command-n", type=float, default=0, help="samples per axis of the whole-command comparison")
+    ap.add_argument("--repeat", type=int, default=3, help="interleaved repetitions of the whole-command comparison")
     args = ap.parse_args()
     if args.n > 0:
         bench_in_memory(int(args.n))
+    if args.command_n > 0:
+        bench_command(int(args.command_n), args.repeat, args.dir)
     if args.stream_n > 0:
         bench_stream(int(args.stream_n), int(args.memory_n or min(args.stream_n, 1e8)), args.dir)
 
