@@ -14,9 +14,20 @@ default, so a simulation without them is sample-for-sample what it was:
 - ``noise_temp_coeff`` (per triad, 1/°C): the noise grows by ``1 + c (T - noise_t_ref_c)`` with the
   unit temperature (every noise term's output is scaled: the white noise dominates at the sample rate).
 
+Of the turntable (used by :class:`~workbench.sim.rig.SimRig`; radians, SI like the rest):
+
+- ``table_indexing_error``: a systematic, repeatable angle error beyond the random 0.01°
+  positioning, ``e(theta) = a sin(theta)`` (encoder eccentricity: the same error at the same
+  position every time); the true table angle is ``theta + e(theta)``, the encoder reads ``theta``;
+- ``table_wobble``: the axis rocking once per revolution, a tilt ``w sin(theta)`` of the platform
+  about the base's horizontal x axis (a tilt that turns rigidly with the table would be a mounting
+  tilt, which every calibration absorbs; the wobble is the part that changes with the angle);
+- ``table_axis_tilt``: the axis misaligned from the local vertical by a fixed tilt about the base's
+  x axis, the same at every table angle (a level table has none).
+
 The draws come from their own child of the recording's seed, so turning one on does not change
-the noise of the others. Not modelled yet: scale-factor drift within a run, table indexing error,
-wobble and axis misalignment, grade defaults (each imperfection is an explicit option).
+the noise of the others. Not modelled yet: scale-factor drift within a run, quantisation and saturation,
+grade defaults (each imperfection is an explicit option).
 
 Public: :class:`Imperfections`.
 """
@@ -42,6 +53,9 @@ class Imperfections:
     turn_on_scale: dict = field(default_factory=dict)
     noise_temp_coeff: dict = field(default_factory=dict)
     noise_t_ref_c: float = 25.0
+    table_indexing_error: float = 0.0
+    table_wobble: float = 0.0
+    table_axis_tilt: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("warm_up_bias", "turn_on_bias", "turn_on_scale", "noise_temp_coeff"):
@@ -50,6 +64,14 @@ class Imperfections:
                 raise WorkbenchError(f"imperfections.{name}: unknown triad(s) {sorted(unknown)}")
         if not self.warm_up_tau_s > 0:
             raise WorkbenchError(f"imperfections.warm_up_tau_s: {self.warm_up_tau_s} s must be positive")
+        for name in ("table_indexing_error", "table_wobble", "table_axis_tilt"):
+            if not abs(getattr(self, name)) < np.radians(10.0):
+                raise WorkbenchError(f"imperfections.{name}: {getattr(self, name)} rad is not a small angle")
+
+    @property
+    def table(self) -> bool:
+        """Whether any turntable imperfection is on."""
+        return bool(self.table_indexing_error or self.table_wobble or self.table_axis_tilt)
 
     def vector(self, name: str, triads: tuple[str, ...]) -> np.ndarray:
         """Field ``name`` stacked over ``triads`` (3 per triad), zeros where a triad has none."""

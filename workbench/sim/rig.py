@@ -45,6 +45,7 @@ class SimRig:
         self.fs = float(truth.sample_rate_hz)
         self.seed = int(seed)
         self.imu = VirtualIMU(truth, seed, imperfections)
+        self._table = imperfections if imperfections is not None and imperfections.table else None
         self.rng = np.random.default_rng([self.seed, 7])
         c0 = config.chamber.initial_c
         self.state = state or RigState(air_c=c0, unit_c=c0, chamber_target_c=c0,
@@ -201,12 +202,15 @@ class SimRig:
             body = vt @ m_true  # row-vector form of m_true^T @ vt
             return np.repeat(body[:1], n, axis=0) if steady else body
 
-        omega_ned = np.empty((rows, 3))
-        omega_ned[:] = self._wie
-        omega_ned[:, 2] += rate_profile[:rows]
-        omega_b = ned_to_body(omega_ned)
-        f_b = ned_to_body(np.array([0.0, 0.0, -self._g]))
-        m_b = ned_to_body(self._mag) if self._mag is not None else None
+        if self._table is not None:
+            omega_b, f_b, m_b = self._imperfect_table(angle[:rows], rate_profile[:rows], m_true, n if steady else None)
+        else:
+            omega_ned = np.empty((rows, 3))
+            omega_ned[:] = self._wie
+            omega_ned[:, 2] += rate_profile[:rows]
+            omega_b = ned_to_body(omega_ned)
+            f_b = ned_to_body(np.array([0.0, 0.0, -self._g]))
+            m_b = ned_to_body(self._mag) if self._mag is not None else None
         air, unit = self._temperatures(n)
         out = self.imu.measure(omega_b, f_b, m_b, unit)
         res = self.config.turntable.encoder_resolution
@@ -223,6 +227,33 @@ class SimRig:
         st.table_rate = float(rate_profile[-1])
         st.mount = np.asarray(mount).tolist()
         return pd.DataFrame(data)
+
+    def _imperfect_table(self, angle: np.ndarray, rate: np.ndarray, m_true: np.ndarray, repeat: int | None):
+        """Body-frame angular rate, specific force and field on a table with indexing error, wobble, axis tilt.
+
+        ``angle``/``rate``: encoder angle (rad) and commanded rate (rad/s) per row. The platform's
+        attitude is ``C_np = A W(theta) Rz(az0 + theta + e(theta))`` with ``A`` the fixed axis tilt and
+        ``W`` the wobble (both about the base x axis); its rate in the platform frame is
+        ``Rz^T (W^T A^T w_ie + eps' x) + psi' z`` with ``eps' = w cos(theta) rate`` and
+        ``psi' = rate (1 + a cos(theta))``. ``repeat``: rows to repeat the first row to (a steady step).
+        """
+        imp = self._table
+        psi = self._az0 + angle + imp.table_indexing_error * np.sin(angle)
+        psi_dot = rate * (1.0 + imp.table_indexing_error * np.cos(angle))
+        eps = imp.table_axis_tilt + imp.table_wobble * np.sin(angle)
+        eps_dot = imp.table_wobble * np.cos(angle) * rate
+        ce, se, c, s = np.cos(eps), np.sin(eps), np.cos(psi), np.sin(psi)
+
+        def to_platform(v: np.ndarray, extra_x=0.0, extra_z=0.0) -> np.ndarray:
+            v = np.broadcast_to(v, (len(angle), 3))
+            x, y, z = v[:, 0] + extra_x, ce * v[:, 1] + se * v[:, 2], -se * v[:, 1] + ce * v[:, 2]
+            body = np.stack([c * x + s * y, -s * x + c * y, z + extra_z], axis=1) @ m_true
+            return np.repeat(body[:1], repeat, axis=0) if repeat else body
+
+        omega_b = to_platform(self._wie, eps_dot, psi_dot)
+        f_b = to_platform(np.array([0.0, 0.0, -self._g]))
+        m_b = to_platform(np.asarray(self._mag, float)) if self._mag is not None else None
+        return omega_b, f_b, m_b
 
     def _temperatures(self, n: int) -> tuple[np.ndarray, np.ndarray]:
         """Air temperature (moving to the chamber target at its ramp rate) and the unit's lag."""
