@@ -201,7 +201,7 @@ def fit_gyro_turns(session: Session, static: TriadFit, accel: TriadFit,
     if not modelled:
         bound = EARTH_RATE * max(durations) / (2 * np.pi)
         warnings.append(f"{session.name}: Earth rate not modelled in the turns (the static fit left it in the bias): "
-                        f"the scale factor carries up to Omega_e T / 360° = {bound * 1e6:.3g} ppm, included in its sigma")
+                        f"the scale factor carries up to Ω_e·T / 360° = {bound * 1e6:.3g} ppm, included in its sigma")
     notes = {**dict(static.notes), "turn_steps": [r.index for r in recs], "turn_axis_sigma_rad": tilt,
              "turn_durations_s": durations, "method": "Ferraris: integrated turns against the known angle",
              "turn_earth_rate": earth[0].method,
