@@ -39,6 +39,7 @@ from __future__ import annotations
 import numpy as np
 
 from workbench import units
+from workbench.angles import wrap_pi
 from workbench.calset import CalibrationSet
 from workbench.errors import AnalysisError
 from workbench.nav import zupt
@@ -137,7 +138,7 @@ def _position(session: Session, group: list, samples, noise, cfg: zupt.ZuptConfi
     return {
         "label": step.label, "step": step.index, "true_rph_deg": np.degrees(true_rph).tolist(),
         "turns": sum(g.kind == "index" for g in group), "initial_heading_error_deg": _num(np.degrees(
-            (true_rph[2] - res.initial_rph[2] + np.pi) % (2 * np.pi) - np.pi)),
+            wrap_pi(true_rph[2] - res.initial_rph[2]))),
         "roll_error_deg": _num(err[-1, 0]), "pitch_error_deg": _num(err[-1, 1]),
         "heading_error_deg": _num(err[-1, 2]),
         "roll_error_60s_deg": _num(err[i60, 0]), "pitch_error_60s_deg": _num(err[i60, 1]),

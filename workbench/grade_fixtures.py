@@ -15,32 +15,32 @@ import numpy as np
 import yaml
 
 from workbench.grade_types import AXES, FIXTURES, Hysteresis, NoiseSpec, SensorSpec, SpecError, TRIADS, TriadSpec
-from workbench.units import DEG, G0, HOUR
+from workbench.units import factor
 
 
 # ---------------------------------------------------------------------------- lab units
-_RT_H = np.sqrt(HOUR)
 _QUANTITY = {"gyro": "rate", "accel": "accel", "mag": "field"}
-# SI value of one lab unit, per physical dimension; a YAML key is ``<term>_<unit>``.
-_UNITS: dict[str, dict[str, float]] = {
-    "rate": {"deg_per_h": DEG / HOUR, "deg_per_s": DEG, "rad_per_s": 1.0},
-    "accel": {"mg": G0 * 1e-3, "ug": G0 * 1e-6, "g": G0, "m_per_s2": 1.0, "m_per_s_per_h": 1.0 / HOUR},
-    "field": {"ut": 1.0, "nt": 1e-3, "mgauss": 0.1, "gauss": 100.0},
-    "rate/rthz": {"deg_per_sqrt_h": DEG / _RT_H, "deg_per_h_per_sqrt_hz": DEG / HOUR,
-                  "deg_per_s_per_sqrt_hz": DEG, "rad_per_s_per_sqrt_hz": 1.0},
-    "accel/rthz": {"ug_per_sqrt_hz": G0 * 1e-6, "mg_per_sqrt_hz": G0 * 1e-3, "m_per_s_per_sqrt_h": 1.0 / _RT_H,
-                   "m_per_s2_per_sqrt_hz": 1.0},
-    "field/rthz": {"ut_per_sqrt_hz": 1.0, "nt_per_sqrt_hz": 1e-3},
-    "rate/rts": {"deg_per_h_per_sqrt_h": DEG / HOUR / _RT_H, "rad_per_s_per_sqrt_s": 1.0},
-    "accel/rts": {"m_per_s_per_h_per_sqrt_h": 1.0 / HOUR / _RT_H, "ug_per_sqrt_s": G0 * 1e-6,
-                  "m_per_s2_per_sqrt_s": 1.0},
-    "field/rts": {"ut_per_sqrt_s": 1.0},
-    "rate*s": {"rad": 1.0, "urad": 1e-6, "arcsec": DEG / 3600.0},
-    "accel*s": {"m_per_s": 1.0, "mm_per_s": 1e-3},
-    "field*s": {"ut_s": 1.0},
-    "ratio": {"ppm": 1e-6, "pct": 1e-2, "mrad": 1e-3, "urad": 1e-6},
-    "fs": {"ppm_fs": 1e-6, "pct_fs": 1e-2},
-    "rate/accel": {"deg_per_h_per_g": DEG / HOUR / G0, "deg_per_s_per_g": DEG / G0, "rad_per_s_per_m_per_s2": 1.0},
+# The YAML spelling of each lab unit per physical dimension -> its name in workbench.units (the
+# one unit table: the SI factor comes from units.factor); a YAML key is ``<term>_<unit>``.
+_UNITS: dict[str, dict[str, str]] = {
+    "rate": {"deg_per_h": "deg/h", "deg_per_s": "deg/s", "rad_per_s": "rad/s"},
+    "accel": {"mg": "mg", "ug": "ug", "g": "g", "m_per_s2": "m/s^2", "m_per_s_per_h": "m/s/h"},
+    "field": {"ut": "uT", "nt": "nT", "mgauss": "mgauss", "gauss": "gauss"},
+    "rate/rthz": {"deg_per_sqrt_h": "deg/sqrt(h)", "deg_per_h_per_sqrt_hz": "deg/h/sqrt(Hz)",
+                  "deg_per_s_per_sqrt_hz": "deg/s/sqrt(Hz)", "rad_per_s_per_sqrt_hz": "rad/s/sqrt(Hz)"},
+    "accel/rthz": {"ug_per_sqrt_hz": "ug/sqrt(Hz)", "mg_per_sqrt_hz": "mg/sqrt(Hz)", "m_per_s_per_sqrt_h": "m/s/sqrt(h)",
+                   "m_per_s2_per_sqrt_hz": "m/s^2/sqrt(Hz)"},
+    "field/rthz": {"ut_per_sqrt_hz": "uT/sqrt(Hz)", "nt_per_sqrt_hz": "nT/sqrt(Hz)"},
+    "rate/rts": {"deg_per_h_per_sqrt_h": "deg/h/sqrt(h)", "rad_per_s_per_sqrt_s": "rad/s/sqrt(s)"},
+    "accel/rts": {"m_per_s_per_h_per_sqrt_h": "m/s/h/sqrt(h)", "ug_per_sqrt_s": "ug/sqrt(s)",
+                  "m_per_s2_per_sqrt_s": "m/s^2/sqrt(s)"},
+    "field/rts": {"ut_per_sqrt_s": "uT/sqrt(s)"},
+    "rate*s": {"rad": "rad", "urad": "urad", "arcsec": "arcsec"},
+    "accel*s": {"m_per_s": "m/s", "mm_per_s": "mm/s"},
+    "field*s": {"ut_s": "uT*s"},
+    "ratio": {"ppm": "ppm", "pct": "%", "mrad": "mrad", "urad": "urad"},
+    "fs": {"ppm_fs": "ppm", "pct_fs": "%"},
+    "rate/accel": {"deg_per_h_per_g": "deg/h/g", "deg_per_s_per_g": "deg/s/g", "rad_per_s_per_m_per_s2": "rad/s/(m/s^2)"},
 }
 _DIM_LABEL = {
     "rate": "angular-rate", "accel": "acceleration", "field": "magnetic-field",
@@ -135,7 +135,7 @@ def _split_key(key: str, triad: str, where: str) -> tuple[str, float]:
         if unit not in table:
             raise SpecError(f"{where}: unit {unit!r} is not a {_DIM_LABEL[dim]} unit for {canonical} "
                             f"(use one of: {', '.join(table)})")
-        return canonical, table[unit]
+        return canonical, factor(table[unit])
     raise SpecError(f"{where}: unknown key (terms: {', '.join(sorted({*_TERMS, *_ALIASES, *_PLAIN}))})")
 
 

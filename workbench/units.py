@@ -33,6 +33,10 @@ _FACTORS = {
     # nonlinearity k of measured = x + k x^2 and g-sensitivity (rad/s per m/s^2)
     "ppm/(deg/s)": 1e-6 / DEG, "ug/g^2": G0 * 1e-6 / G0 ** 2, "ppm/uT": 1e-6, "deg/h/g": DEG / HOUR / G0,
     "degC": 1.0, "s": 1.0, "Hz": 1.0,
+    # the other spellings sensor-grade fixtures use (workbench.grade_fixtures)
+    "m/s/h": 1.0 / HOUR, "deg/s/sqrt(Hz)": DEG, "mg/sqrt(Hz)": G0 * 1e-3, "uT/sqrt(Hz)": 1.0, "nT/sqrt(Hz)": 1e-3,
+    "rad/s/sqrt(s)": 1.0, "ug/sqrt(s)": G0 * 1e-6, "m/s^2/sqrt(s)": 1.0, "uT/sqrt(s)": 1.0, "urad": 1e-6,
+    "uT*s": 1.0, "deg/s/g": DEG / G0, "rad/s/(m/s^2)": 1.0,
 }
 LABELS = {"deg/sqrt(h)": "°/√h", "deg/h": "°/h", "deg/s": "°/s", "ug/sqrt(Hz)": "µg/√Hz", "ug": "µg",
           "uT": "µT", "ut": "µT", "deg": "°", "m/s/sqrt(h)": "m/s/√h", "deg/h/sqrt(h)": "°/h/√h",
@@ -153,10 +157,3 @@ def field_quantity(field: str, index: tuple[int, ...]) -> str:
         return "scale_factor" if len(index) == 2 and index[0] == index[1] else "misalignment"
     return field
 
-
-# Natural display unit of each triad's quantities (kept for callers that look up by triad), from QUANTITIES.
-DISPLAY = {
-    triad: {**{q: u for (t, q), u in QUANTITIES.items() if t == triad},
-            **({"noise_white": QUANTITIES[(triad, "arw" if triad == "gyro" else "vrw")]} if triad != "mag" else {})}
-    for triad in ("gyro", "accel", "mag")
-}

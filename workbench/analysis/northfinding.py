@@ -48,6 +48,7 @@ from workbench.analysis.northfinding_fit import (HarmonicFit, MaytagResult, Redu
                                                  redundant, repeatability)
 from workbench.analysis.northfinding_report import pairing_table, sequence_table, to_result  # noqa: F401
 from workbench.analysis.northfinding_theory import check_latitude
+from workbench.angles import wrap_2pi
 from workbench.errors import AnalysisError
 from workbench.session import Session
 
@@ -253,7 +254,7 @@ def _per_unit(obs, groups, geom, lat, where, fit, units) -> _MethodFit:
 def _multiposition(session, obs, geom, lat, drift, where, positions_per_turn, **_) -> _MethodFit:
     """Static steps round the turn: one fit of all, one per turn of ``positions_per_turn``."""
     fit = fit_harmonic(obs, geom, lat, drift=drift, where=where)
-    per = positions_per_turn or len(np.unique(np.round(np.mod(obs.angle, 2 * np.pi), 4)))
+    per = positions_per_turn or len(np.unique(np.round(wrap_2pi(obs.angle), 4)))
     m = _per_unit(obs, np.arange(len(obs)) // per, geom, lat, where, fit, "turn")
     return replace(m, parts={"rows_per_unit": m.parts["rows_per_unit"]})
 

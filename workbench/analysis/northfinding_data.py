@@ -13,17 +13,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from workbench.angles import angle_diff
+from workbench.angles import angle_diff, circular_mean  # noqa: F401  (re-exported)
 from workbench.errors import AnalysisError
 from workbench.session import Session
 
 
 STATIC_RATE_TOL = 1e-9  # rad/s: |table_rate| below this counts as static
-
-
-def circular_mean(angles: np.ndarray) -> float:
-    """Mean direction of ``angles`` (rad), in (-pi, pi]."""
-    return float(np.angle(np.mean(np.exp(1j * np.asarray(angles, float)))))
 
 
 # -- observations -------------------------------------------------------------------------

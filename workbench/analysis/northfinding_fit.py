@@ -15,6 +15,7 @@ import numpy as np
 
 from workbench.analysis.northfinding_data import AxisGeometry, Observations, angle_diff, circular_mean
 from workbench.analysis.northfinding_theory import check_latitude
+from workbench.angles import wrap_2pi
 from workbench.earth import EARTH_RATE
 from workbench.errors import AnalysisError
 
@@ -247,7 +248,7 @@ def maytag(obs: Observations, geom: AxisGeometry, latitude: float, index_tol: fl
         sep = abs(angle_diff(ang[j] - ang[i], np.pi))
         if sep > index_tol:
             raise AnalysisError(f"{where}: steps {obs.step[i]} -> {obs.step[j]}: the index is "
-                                f"{np.degrees(np.mod(ang[j] - ang[i], 2 * np.pi)):.4f}° by the encoder, not 180° "
+                                f"{np.degrees(wrap_2pi(ang[j] - ang[i])):.4f}° by the encoder, not 180° "
                                 f"(tolerance {np.degrees(index_tol):.3g}°)")
         d = (obs.rate[i] - obs.rate[j]) / 2.0 / np.where(geom.gain > 0, geom.gain, 1.0)
         if two_axis:
@@ -337,7 +338,7 @@ def redundant(obs: Observations, geom: AxisGeometry, latitude: float, positions_
     az = np.zeros((n_turns, positions_per_turn))
     for k in range(positions_per_turn):
         k2 = (k + 1) % positions_per_turn
-        a0 = np.degrees(ang[0, k]) % 360
+        a0 = np.degrees(wrap_2pi(ang[0, k]))
         labels.append(f"{a0:.0f}-{(a0 + np.degrees(step)) % 360:.0f}")
         for t in range(n_turns):
             rows = np.array([t * positions_per_turn + k, t * positions_per_turn + k2])

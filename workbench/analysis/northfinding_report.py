@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from workbench.analysis.northfinding_fit import RedundantResult, repeatability
+from workbench.angles import wrap_2pi
 from workbench.errors import AnalysisError
 
 if TYPE_CHECKING:
@@ -41,10 +42,10 @@ def to_result(nf: NorthFinding) -> tuple[dict, list[str]]:
     th = nf.theory
     res = {
         "method": nf.method,
-        "azimuth_deg": float(np.degrees(nf.azimuth) % 360.0),
+        "azimuth_deg": float(np.degrees(wrap_2pi(nf.azimuth))),
         "azimuth_sigma_mrad": _json_num(nf.azimuth_sigma * 1e3),
         "units": nf.units,
-        "pair_azimuths_deg": _json_num(np.degrees(nf.unit_azimuth) % 360.0),
+        "pair_azimuths_deg": _json_num(np.degrees(wrap_2pi(nf.unit_azimuth))),
         "pair_times_s": _json_num(nf.unit_time),
         "pair_std_mrad": _json_num(nf.unit_std * 1e3),
         "gyro_bias": _json_num(nf.gyro_bias),
@@ -64,7 +65,7 @@ def to_result(nf: NorthFinding) -> tuple[dict, list[str]]:
     if isinstance(nf.detail, RedundantResult):
         d = nf.detail
         res["redundant"] = {"bias_source": d.bias_source, "pairings": [
-            {"pairing_deg": lab, "mean_deg": float(np.degrees(m) % 360.0), "std_mrad": _json_num(s * 1e3),
+            {"pairing_deg": lab, "mean_deg": float(np.degrees(wrap_2pi(m))), "std_mrad": _json_num(s * 1e3),
              "n": int(d.azimuth.shape[0])} for lab, m, s in zip(d.pairings, d.mean, d.std)]}
     summary = [
         f"azimuth of body x at table zero: {res['azimuth_deg']:.4f}° ± {nf.azimuth_sigma * 1e3:.3g} mrad (1σ, "

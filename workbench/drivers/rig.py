@@ -33,7 +33,7 @@ import pandas as pd
 
 from workbench.drivers.imu_stream import Block, ImuStream
 from workbench.drivers.turntable_visa import DEFAULT_POSITIONING_RATE, VisaTurntable
-from workbench.angles import wrap_pi
+from workbench.angles import wrap_2pi, wrap_pi
 from workbench.errors import RigError, RigLimitError, WorkbenchError
 from workbench.motion import RigState
 from workbench.rigconfig import RigConfig, check_plan
@@ -353,7 +353,7 @@ class RealRig:
         n = len(block.t)
         data = {"t": block.t, "step": np.full(n, step, dtype=np.int64), **block.columns}
         if n:
-            data["table_angle"] = np.mod(angle - rate * (block.t[-1] - block.t), 2 * np.pi)
+            data["table_angle"] = wrap_2pi(angle - rate * (block.t[-1] - block.t))
             data["table_rate"] = np.full(n, rate)
             if "temp" in block.columns:
                 self.state.unit_c = float(block.columns["temp"][-1])

@@ -37,6 +37,7 @@ import numpy as np
 import pyvisa
 from pyvisa.constants import StatusCode
 
+from workbench.angles import wrap_2pi
 from workbench.drivers.transport import reopen_once, reply_number, short_error
 from workbench.errors import RigError
 
@@ -159,7 +160,7 @@ class VisaTurntable:
             out.append(self._command("position_accel", accel_dps2=f["accel_dps2"]))
         if relative:
             return out + [self._command("position_relative", delta_deg=float(np.degrees(angle)), **f)]
-        return out + [self._command("position", angle_deg=float(np.degrees(np.mod(angle, 2 * np.pi))), **f)]
+        return out + [self._command("position", angle_deg=float(np.degrees(wrap_2pi(angle))), **f)]
 
     def _io(self, command: str, reply: bool) -> str:
         tries, reopened = 0, False
@@ -223,7 +224,7 @@ class VisaTurntable:
     def angle(self) -> float:
         """Read-back table angle, rad, wrapped to [0, 2 pi)."""
         cmd = self._command("read_angle")
-        return float(np.mod(np.radians(reply_number(self.where, cmd, self.query("read_angle"))), 2 * np.pi))
+        return wrap_2pi(np.radians(reply_number(self.where, cmd, self.query("read_angle"))))
 
     def rate(self) -> float:
         """Read-back table rate, rad/s (positive clockwise seen from above)."""

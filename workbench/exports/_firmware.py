@@ -14,7 +14,7 @@ from scipy.spatial.transform import Rotation
 
 from workbench.calset import CalibrationSet
 from workbench.model import TriadModel
-from workbench.units import label, to_unit, unit_of
+from workbench.units import label, show, to_unit, unit_of
 
 LAB = {triad: unit_of(triad, "bias") for triad in ("gyro", "accel", "mag")}  # the unit vocabulary
 
@@ -62,11 +62,11 @@ def inertial_dropped(calset: CalibrationSet, triad: str, scale_supported: bool, 
     out = []
     off = m.scale_misalignment - np.diag(np.diag(m.scale_misalignment))
     if np.any(off):
-        out.append(f"{triad}: misalignment (off-diagonal M, max {np.abs(off).max() * 1e3:.3g} mrad): {target} "
-                   "has no cross-axis terms")
+        worst = show(triad, "misalignment", np.abs(off).max(), digits=3)
+        out.append(f"{triad}: misalignment (off-diagonal M, max {worst}): {target} has no cross-axis terms")
     if not scale_supported and np.any(np.diag(m.scale_misalignment)):
-        out.append(f"{triad}: scale factor (diag M, max {np.abs(np.diag(m.scale_misalignment)).max() * 1e6:.3g} ppm):"
-                   f" {target} has no {triad} scale parameter")
+        worst = show(triad, "scale_factor", np.abs(np.diag(m.scale_misalignment)).max(), digits=3)
+        out.append(f"{triad}: scale factor (diag M, max {worst}): {target} has no {triad} scale parameter")
     if np.any(m.nonlinearity):
         out.append(f"{triad}: quadratic nonlinearity: {target} has no such term")
     if m.g_sensitivity is not None and np.any(m.g_sensitivity):

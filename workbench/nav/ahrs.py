@@ -55,6 +55,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from workbench.angles import wrap_pi
 from workbench.earth import earth_rate_ned
 from workbench.errors import AnalysisError
 from workbench.nav.compensate import ImuSamples, ProcessNoise
@@ -194,7 +195,7 @@ def _measure(blk: _Block, declination: float) -> np.ndarray:
     """Tilt and heading innovations (3,) ~ (dtheta_N, dtheta_E, -dtheta_D) of a block."""
     f, m = blk.f, blk.m
     psi = np.arctan2(m[1], m[0]) - declination
-    return np.array([-f[1] / blk.fn, f[0] / blk.fn, (psi + np.pi) % (2 * np.pi) - np.pi])
+    return np.array([-f[1] / blk.fn, f[0] / blk.fn, wrap_pi(psi)])
 
 
 def _check(samples: ImuSamples, config: AhrsConfig) -> tuple[int, int]:

@@ -16,6 +16,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from workbench.analysis.magnetometer import MagCalibration  # noqa: E402
+from workbench.angles import wrap_2pi  # noqa: E402
 
 _PLANES = ((0, 1), (0, 2), (1, 2))
 _AXES = "xyz"
@@ -54,7 +55,7 @@ def plot_heading_error(cal: MagCalibration) -> plt.Figure:
     for ev, name, color, marker in series:
         if ev is None:
             continue
-        az = np.degrees(ev.reference) % 360.0
+        az = np.degrees(wrap_2pi(ev.reference))
         ax.plot(az, np.degrees(ev.error), marker, ms=4, color=color, ls="none",
                 label=f"{name}: RMS {np.degrees(ev.rms):.3g}°")
     ax.axhline(0.0, color="k", lw=0.6)

@@ -20,6 +20,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from workbench.analysis.northfinding import NorthFinding, RedundantResult, angle_diff  # noqa: E402
+from workbench.angles import wrap_2pi  # noqa: E402
 from workbench.units import to_unit  # noqa: E402
 
 
@@ -30,7 +31,7 @@ def earth_rate_figure(nf: NorthFinding):
     drift = np.nan_to_num(fit.drift) * (obs.t - fit.t_ref)[:, None]
     grid = np.linspace(0.0, 2 * np.pi, 361)
     model = fit.model(grid, geom, nf.latitude) - fit.bias
-    ang = np.degrees(np.mod(obs.angle, 2 * np.pi))
+    ang = np.degrees(wrap_2pi(obs.angle))
     for i in np.flatnonzero(geom.horizontal):
         meas = obs.rate[:, i] - fit.bias[i] - drift[:, i]
         line = ax.plot(ang, to_unit(meas, "deg/h"), ".", ms=3, label=f"gyro {'xyz'[i]}")[0]
@@ -53,7 +54,7 @@ def azimuth_figure(nf: NorthFinding):
     fig, ax = plt.subplots(figsize=(8, 4.5), layout="constrained")
     dev = angle_diff(nf.unit_azimuth, nf.azimuth) * 1e3
     ax.plot(nf.unit_time / 60.0, dev, "o-", ms=3, lw=0.6, label=f"per {nf.units}")
-    ax.axhline(0.0, color="k", lw=1, label=f"mean {np.degrees(nf.azimuth) % 360:.3f}°")
+    ax.axhline(0.0, color="k", lw=1, label=f"mean {np.degrees(wrap_2pi(nf.azimuth)):.3f}°")
     for sgn in (-1, 1):
         ax.axhline(sgn * nf.unit_std * 1e3, color="C1", ls="--", lw=0.8,
                    label=f"±1σ per {nf.units} = {nf.unit_std * 1e3:.2f} mrad" if sgn > 0 else None)
@@ -63,7 +64,7 @@ def azimuth_figure(nf: NorthFinding):
     ax.set_xlabel("time [min]")
     ax.set_ylabel("azimuth − mean [mrad]")
     err = "" if nf.azimuth_error is None else f", error {nf.azimuth_error * 1e3:+.2f} mrad"
-    ax.set_title(f"{nf.method}: azimuth {np.degrees(nf.azimuth) % 360:.3f}° ± {nf.azimuth_sigma * 1e3:.2f} mrad{err}")
+    ax.set_title(f"{nf.method}: azimuth {np.degrees(wrap_2pi(nf.azimuth)):.3f}° ± {nf.azimuth_sigma * 1e3:.2f} mrad{err}")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     return fig

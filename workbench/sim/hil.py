@@ -38,7 +38,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from workbench.angles import wrap_pi
+from workbench.angles import wrap_2pi, wrap_pi
 from workbench.drivers.imu_stream import SIGNALS, FrameFormat
 from workbench.drivers.turntable_visa import DEFAULT_COMMANDS, DEFAULT_POSITIONING_RATE
 from workbench.errors import RigError
@@ -405,7 +405,7 @@ class HilLab:
             return "HIL,workbench turntable simulator,0,1.0"
         if key == "read_angle":
             res = tt.encoder_resolution
-            return f"{np.degrees(np.mod(np.round(st.table_angle / res) * res, 2 * np.pi)):.6f}"
+            return f"{np.degrees(wrap_2pi(np.round(st.table_angle / res) * res)):.6f}"
         if key == "read_rate":
             return f"{np.degrees(st.table_rate):.6f}"
         if key == "status":

@@ -18,7 +18,7 @@ import pandas as pd
 from scipy.signal import lfilter
 from scipy.spatial.transform import Rotation
 
-from workbench.angles import wrap_pi
+from workbench.angles import wrap_2pi, wrap_pi
 from workbench.earth import earth_rate_ned, normal_gravity
 from workbench.errors import RigError
 from workbench.motion import RigState
@@ -220,10 +220,10 @@ class SimRig:
         if out.get("mag") is not None:
             data.update({c: out["mag"][:, i] for i, c in enumerate(("mx", "my", "mz"))})
         data["temp"] = out["temp"]
-        data["table_angle"] = np.mod(np.round(angle / res) * res, 2 * np.pi)
+        data["table_angle"] = wrap_2pi(np.round(angle / res) * res)
         data["table_rate"] = rate_profile
         st.sample += n
-        st.table_angle = float(np.mod(angle[-1], 2 * np.pi))
+        st.table_angle = wrap_2pi(float(angle[-1]))
         st.table_rate = float(rate_profile[-1])
         st.mount = np.asarray(mount).tolist()
         return pd.DataFrame(data)
