@@ -1,7 +1,7 @@
 """Test sequences: declarative, composable, serialisable steps for the turntable and chamber.
 
 A :class:`Sequence` is a list of steps (:class:`Hold`, :class:`Rotate`, :class:`Index`,
-:class:`Carousel`, :class:`Soak`, :class:`Ramp`, and :class:`Repeat` to nest them). It is
+:class:`Carousel`, :class:`Soak`, :class:`Ramp`, :class:`Free`, and :class:`Repeat` to nest them). It is
 shown to the user (:meth:`Sequence.describe`) before it runs and expands
 (:meth:`Sequence.expand`) into :class:`PlannedStep` records with absolute mount, table angle,
 rate and chamber setpoint, which the runner hands to a rig one at a time.
@@ -145,6 +145,21 @@ class Ramp:
 
 
 @dataclass(frozen=True)
+class Free:
+    """Motion by hand for ``duration_s``: no table, no known attitude.
+
+    The unit is turned (or held) by a person; only its own sensors know its attitude, so an
+    analysis of a ``free`` step takes gravity from the accelerometer's still stretches
+    (:mod:`workbench.analysis.stationarity`) and never a table angle or mount. A rig leaves the
+    unit where it is for the step; the kind is for recordings made by hand (an import profile without ``sections`` makes
+    the whole recording one ``free`` step).
+    """
+
+    duration_s: float = 60.0
+    label: str = ""
+
+
+@dataclass(frozen=True)
 class Repeat:
     """``steps`` repeated ``count`` times."""
 
@@ -153,15 +168,15 @@ class Repeat:
     label: str = ""
 
 
-STEP_TYPES = {cls.__name__: cls for cls in (Hold, Rotate, Index, Carousel, Soak, Ramp, Repeat)}
-Step = Union[Hold, Rotate, Index, Carousel, Soak, Ramp, Repeat]
+STEP_TYPES = {cls.__name__: cls for cls in (Hold, Rotate, Index, Carousel, Soak, Ramp, Free, Repeat)}
+Step = Union[Hold, Rotate, Index, Carousel, Soak, Ramp, Free, Repeat]
 
 
 @dataclass(frozen=True)
 class PlannedStep:
     """One expanded step, absolute: what the rig is asked to do (see ``workbench.session``)."""
 
-    kind: str  # static | rate | index | carousel | soak | ramp
+    kind: str  # static | rate | index | carousel | soak | ramp | free
     mount: np.ndarray
     table_angle: float  # rad at the step start
     table_rate: float  # rad/s commanded (0 when static)
@@ -261,6 +276,9 @@ class Sequence:
                                         "settle_window_s": s.settle_window_s}))
             elif isinstance(s, Ramp):
                 self._expand_ramp(s, st, out)
+            elif isinstance(s, Free):
+                _positive(self.name, "Free.duration_s", s.duration_s)
+                out.append(PlannedStep("free", np.eye(3), 0.0, 0.0, float(s.duration_s), st["temp"], s.label))
             else:
                 raise RigLimitError(f"sequence {self.name}: unknown step {s!r}")
 
@@ -329,5 +347,5 @@ def with_options(seq: Sequence, **options) -> Sequence:
     return replace(seq, options={**seq.options, **options})
 
 
-__all__ = ["Hold", "Rotate", "Index", "Carousel", "Soak", "Ramp", "Repeat", "Sequence", "PlannedStep",
+__all__ = ["Hold", "Rotate", "Index", "Carousel", "Soak", "Ramp", "Free", "Repeat", "Sequence", "PlannedStep",
            "mount_matrix", "mount_from_euler", "mount_label", "MOUNT_NAMES", "step_from_dict"]

@@ -29,7 +29,7 @@ from workbench.values import Unit
 
 FORMAT = "workbench-session/1"
 STEP_LOG = "steps.jsonl"  # an unfinished recording's completed steps, one JSON object a line (runner.py)
-STEP_KINDS = ("static", "rate", "index", "carousel", "soak", "ramp", "drive")
+STEP_KINDS = ("static", "rate", "index", "carousel", "soak", "ramp", "drive", "free")  # free: by hand, no table
 GYRO = ["gx", "gy", "gz"]
 ACCEL = ["ax", "ay", "az"]
 MAG = ["mx", "my", "mz"]

@@ -57,3 +57,15 @@ def test_too_fast_ramp_is_refused():
     rig = SimRig(load_rig_config("sim"), draw_unit(load_spec("industrial_mems"), 1), 1)
     with pytest.raises(RigLimitError, match="step 1 .*ramp 20.00 °C/min exceeds"):
         rig.check(seq.expand())
+
+
+def test_free_step_expands_and_round_trips():
+    from workbench.sequence import Free
+    from workbench.session import STEP_KINDS
+
+    seq = Sequence("by-hand", [Free(30.0, "tumble")])
+    (p,) = seq.expand()
+    assert p.kind == "free" and p.kind in STEP_KINDS and p.duration_s == 30.0 and p.table_rate == 0.0
+    assert Sequence.from_json(seq.to_json()).expand()[0].kind == "free"
+    with pytest.raises(RigLimitError, match="Free.duration_s"):
+        Sequence("bad", [Free(0.0)]).expand()
