@@ -12,9 +12,8 @@ from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
-import yaml
-
 from workbench.grade_types import AXES, FIXTURES, Hysteresis, NoiseSpec, SensorSpec, SpecError, TRIADS, TriadSpec
+from workbench.safe_yaml import load_yaml_file
 from workbench.units import factor
 
 
@@ -85,12 +84,7 @@ def load_spec(name_or_path: str | Path) -> SensorSpec:
     if not path.is_file():
         known = ", ".join(grade_names())
         raise SpecError(f"{path}: no such sensor-grade file (known grades: {known})")
-    try:
-        data = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        where = getattr(exc, "problem_mark", None)
-        line = f" line {where.line + 1}" if where is not None else ""
-        raise SpecError(f"{path}:{line} invalid YAML ({getattr(exc, 'problem', exc)})") from None
+    data = load_yaml_file(path, error=SpecError)  # size and alias expansion limited, the line named
     if not isinstance(data, Mapping):
         raise SpecError(f"{path}: expected a mapping of grade fields at the top level")
     return _parse_spec(data, path)

@@ -99,6 +99,22 @@ class _Samples:
                 "span": span}
 
 
+def _settled_cuts(session: Session, chosen, settle_s: float, static: bool):
+    """(step, cut, where) for each chosen step after its first ``settle_s`` seconds; AnalysisError naming
+    the step when nothing is left (a static dwell, or a rotation's duration, not longer than ``settle_s``)."""
+    data = _Samples(session)
+    for st in chosen:
+        c = data.cut(st, settle_s, static=static)
+        if static:
+            where = f"{session.name}: step {st.index} ({st.kind}{', ' + st.label if st.label else ''})"
+        else:
+            where = f"{session.name}: step {st.index} ({st.kind})"
+        if c["span"] <= settle_s or len(c["t"]) == 0:
+            what = "static dwell" if static else "duration"
+            raise AnalysisError(f"{where}: {what} {c['span']:.3g} s is not longer than the settling time {settle_s:g} s")
+        yield st, c, where
+
+
 def static_observations(session: Session, settle_s: float, steps: Sequence[int] | None = None) -> Observations:
     """One row per static step: the gyro mean after ``settle_s`` seconds of settling.
 
@@ -110,14 +126,8 @@ def static_observations(session: Session, settle_s: float, steps: Sequence[int] 
     chosen = session.steps_of_kind("static") if steps is None else [session.step(i) for i in steps]
     if not chosen:
         raise AnalysisError(f"{session.name}: no static steps to find north from")
-    data = _Samples(session)
     rows = []
-    for st in chosen:
-        c = data.cut(st, settle_s, static=True)
-        if c["span"] <= settle_s or len(c["t"]) == 0:
-            where = f"{session.name}: step {st.index} ({st.kind}{', ' + st.label if st.label else ''})"
-            raise AnalysisError(f"{where}: static dwell {c['span']:.3g} s is not longer than the settling time "
-                                f"{settle_s:g} s")
+    for st, c, _ in _settled_cuts(session, chosen, settle_s, static=True):
         n = len(c["t"])
         rows.append(Observations(np.array([c["t"].mean()]), c["gyro"].mean(axis=0)[None, :],
                                  np.array([np.cos(c["angle"]).mean()]), np.array([np.sin(c["angle"]).mean()]),
@@ -137,14 +147,8 @@ def rotating_observations(session: Session, settle_s: float, bin_deg: float = 5.
     chosen = session.steps_of_kind(*kinds)
     if not chosen:
         raise AnalysisError(f"{session.name}: no {'/'.join(kinds)} steps to find north from")
-    data = _Samples(session)
     parts = []
-    for st in chosen:
-        c = data.cut(st, settle_s, static=False)
-        where = f"{session.name}: step {st.index} ({st.kind})"
-        if c["span"] <= settle_s:
-            raise AnalysisError(f"{where}: duration {c['span']:.3g} s is not longer than the settling time "
-                                f"{settle_s:g} s")
+    for st, c, where in _settled_cuts(session, chosen, settle_s, static=False):
         per_bin = max(1, int(round(np.radians(bin_deg) / max(abs(st.table_rate), 1e-12) * session.sample_rate_hz)))
         nb = len(c["t"]) // per_bin
         if nb < 8:
