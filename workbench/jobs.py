@@ -22,6 +22,7 @@ from workbench import units
 from workbench.calset import CalibrationSet, Unit, atomic_write_text, merge
 from workbench.errors import ProcedureError, WorkbenchError
 from workbench.options import declarations, split, validate
+from workbench.plausibility import gate
 from workbench.procedure import ProcedureResult, run_analysis
 from workbench.registry import campaign_procedures
 from workbench.rigconfig import RigConfig, load_rig_config
@@ -186,7 +187,7 @@ class CampaignResult:
 def run_campaign(spec, truth, cfg: RigConfig, seed: int, out_dir: Path, store=None,
                  progress_for: Callable[[str], Progress | None] | None = None,
                  only: list[str] | None = None, options: Mapping[str, Mapping] | None = None,
-                 figures: bool = True) -> CampaignResult:
+                 figures: bool = True, force: bool = False) -> CampaignResult:
     """Run every calibration procedure that applies to the unit, in order, and merge their sets.
 
     Each procedure records into ``out_dir/<name>/session`` and writes its results and figures to
@@ -198,6 +199,8 @@ def run_campaign(spec, truth, cfg: RigConfig, seed: int, out_dir: Path, store=No
     it, and later procedures take the noise terms of earlier ones (:func:`noise_options`; they
     go through the procedure's declared-option check like any other); options given explicitly
     win. ``campaign.json`` lists the analysis options so set. ``figures=False`` draws none.
+    Every procedure's set and the merged set pass the plausibility gate
+    (:mod:`workbench.plausibility`; ``force`` keeps a failed one with the check in its notes).
     """
     procs = [p for p in campaign_procedures(set(spec.triads)) if applies(p, spec) and not needs_calibration(p)]
     if only:
@@ -227,11 +230,11 @@ def run_campaign(spec, truth, cfg: RigConfig, seed: int, out_dir: Path, store=No
         analysis.update(analysis_given)
         validate(proc, analysis, "analysis")  # the noise options pass the declared-option check too
         analyses[proc.NAME] = analysis
-        results[proc.NAME] = run_analysis(proc, session, analysis, pdir, None, figures)
+        results[proc.NAME] = run_analysis(proc, session, analysis, pdir, None, figures, force)
     sets = [r.calibration for r in results.values() if r.calibration is not None]
     if not sets:
         raise ProcedureError("the campaign produced no calibration set")
-    merged = merge(*sets)
+    merged = gate(merge(*sets), force=force, what="merged calibration")
     merged.save(out_dir / "calibration.json")
     atomic_write_text(out_dir / "campaign.json", json.dumps({
         "unit": {"serial": truth.serial, "model": truth.model}, "grade": spec.name, "seed": seed,

@@ -146,17 +146,35 @@ def write_outputs(result: ProcedureResult, out_dir: Path, figures: Mapping | Non
     return written
 
 
-def run_analysis(proc, session: Session, options: Mapping | None = None, out_dir: Path | None = None,
-                 store=None, figures: bool = True) -> ProcedureResult:
-    """Analyse ``session`` with procedure module ``proc``; write outputs and store, all or nothing.
+def analysed(proc, session: Session, options: Mapping | None = None, force: bool = False) -> ProcedureResult:
+    """``proc.analyze(session, **options)`` with provenance and the options used, through the plausibility gate.
 
-    Files go to ``out_dir`` (each written atomically) only after the analysis succeeded; the
-    store receives the session record, the result and its calibration set last, so a failed
-    analysis leaves both untouched. ``figures=False`` writes no figures (batch work: they can
-    be drawn later from ``result.json``'s result).
+    The one way from an analysis to something that may be stored (``run``, ``analyze``, the
+    campaign, batch, the dashboard's runs): an implausible calibration raises
+    :class:`workbench.plausibility.ImplausibleCalibration` (one line: quantity, value, limit),
+    or with ``force`` carries the failed checks in its notes (:mod:`workbench.plausibility`).
     """
+    from workbench.plausibility import gate
+
     result = with_session_provenance(proc.analyze(session, **dict(options or {})), session)
     result = replace(result, options=used_options(proc, options))
+    if result.calibration is not None:
+        cal = gate(result.calibration, session, result.result, force, what=f"{result.procedure} calibration")
+        result = replace(result, calibration=cal)
+    return result
+
+
+def run_analysis(proc, session: Session, options: Mapping | None = None, out_dir: Path | None = None,
+                 store=None, figures: bool = True, force: bool = False) -> ProcedureResult:
+    """Analyse ``session`` with procedure module ``proc``; write outputs and store, all or nothing.
+
+    Files go to ``out_dir`` (each written atomically) only after the analysis succeeded and its
+    calibration passed the plausibility gate (:func:`analysed`; ``force`` stores an implausible
+    one with the failed checks in its notes); the store receives the session record, the result
+    and its calibration set last, so a failed analysis leaves both untouched. ``figures=False``
+    writes no figures (batch work: they can be drawn later from ``result.json``'s result).
+    """
+    result = analysed(proc, session, options, force)
     if out_dir is not None:
         figs = proc.figures(result) if figures and hasattr(proc, "figures") else None
         write_outputs(result, Path(out_dir), figs)

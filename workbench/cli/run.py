@@ -98,9 +98,19 @@ def _print_result(result: ProcedureResult, out_dir: Path | None) -> None:
         out.print(line, highlight=False)
     for w in result.warnings:
         out.print(styled("warning:", "yellow", f" {w}"), highlight=False)
+    _print_forced(result.calibration)
     if out_dir is not None:
         out.print(f"results in {out_dir} (result.json{', calibration.json' if result.calibration else ''}, figures/)",
                   soft_wrap=True)  # a path is never broken across lines
+
+
+def _print_forced(cal) -> None:
+    """Say so when a calibration was kept past failed plausibility checks (``--force``)."""
+    from workbench.plausibility import forced_failures
+
+    for text in forced_failures(cal) if cal is not None else []:
+        out.print(styled("forced past a failed plausibility check:", "bold red", f" {text}"), highlight=False,
+                  soft_wrap=True)
 
 
 def _load_calibration(ref: str | None):
@@ -140,7 +150,9 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
         no_store: bool = typer.Option(False, "--no-store", help="Leave the store untouched."),
         dry_run: bool = typer.Option(False, "--dry-run", help="Show the sequence and stop."),
         no_figures: bool = typer.Option(False, "--no-figures", help="Draw no figures (batch work; results and "
-                                                                     "calibration sets as usual).")) -> None:
+                                                                     "calibration sets as usual)."),
+        force: bool = typer.Option(False, "--force", help="Store a calibration that fails a plausibility check, "
+                                                          "with the failed check in the set's notes.")) -> None:
     """Record a procedure's sequence on the rig, analyse it, store the result and print a summary."""
     from workbench.grades import draw_unit, load_spec
     from workbench.jobs import record_procedure, resume_procedure, run_campaign
@@ -155,7 +167,7 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
             session = resume_procedure(resume, _tracker(bar, "resume"))
         proc = procedure(session.procedure)
         _analyse_and_report(proc, session, resume.parent if resume.name == "session" else resume, store, calibration,
-                            {**recorded_analysis_options(session), **parse_options(option)}, not no_figures)
+                            {**recorded_analysis_options(session), **parse_options(option)}, not no_figures, force)
         return
     spec = load_spec(unit)
     cfg = load_rig_config(rig)
@@ -178,7 +190,7 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
         with _progress_bar() as bar:
             res = run_campaign(spec, truth, cfg, seed, out_dir, store,
                                lambda name: _tracker(bar, name, totals.get(name)), options=campaign_options,
-                               figures=not no_figures)
+                               figures=not no_figures, force=force)
         for name, r in res.results.items():
             out.print(name, style="bold")
             _print_result(r, out_dir / name)
@@ -192,7 +204,7 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
     # a number-valued option must be a number (one that also takes a word, e.g. 'auto', is checked below)
     options = parse_options(option, {o.name: o.default for o in declarations(proc) if not o.words})
     if getattr(proc, "DRIVE", False):  # recorded on the simulated vehicle, not on the turntable
-        _run_drive(proc, spec, truth, cfg, seed, out_dir, options, store, calibration, dry_run, not no_figures)
+        _run_drive(proc, spec, truth, cfg, seed, out_dir, options, store, calibration, dry_run, not no_figures, force)
         return
     seq_options, analysis_options = split(proc, options)  # refuses a misspelt option before anything runs
     seq = proc.sequence(spec, **seq_options)
@@ -208,7 +220,7 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
     with _interruptible(out_dir / "session", proc.NAME), _progress_bar() as bar:
         session = record_procedure(proc, spec, truth, cfg, seed, out_dir / "session", options,
                                    _tracker(bar, proc.NAME, len(seq.expand())))
-    _analyse_and_report(proc, session, out_dir, store, cal, analysis_options, not no_figures)
+    _analyse_and_report(proc, session, out_dir, store, cal, analysis_options, not no_figures, force)
 
 
 def _step_totals(spec, campaign_options: dict[str, dict]) -> dict[str, int]:
@@ -235,7 +247,7 @@ def _campaign_options(options: dict) -> dict[str, dict]:
 
 
 def _run_drive(proc, spec, truth, cfg, seed: int, out_dir: Path | None, options: dict, store, calibration,
-               dry_run: bool, figures: bool = True) -> None:
+               dry_run: bool, figures: bool = True, force: bool = False) -> None:
     """Drive the simulated vehicle for a land-navigation validation, then analyse the drive."""
     from workbench.procedure import run_analysis
 
@@ -250,7 +262,7 @@ def _run_drive(proc, spec, truth, cfg, seed: int, out_dir: Path | None, options:
     if cal is None:
         cal = _calibrate_first(spec, truth, cfg, seed, out_dir)
     session = proc.record_drive(truth, seed, out_dir / "session", **seq_options)
-    result = run_analysis(proc, session, {**analysis_options, "calibration": cal}, out_dir, store, figures)
+    result = run_analysis(proc, session, {**analysis_options, "calibration": cal}, out_dir, store, figures, force)
     _print_result(result, out_dir)
 
 
@@ -274,13 +286,13 @@ def _calibrate_first(spec, truth, cfg, seed, out_dir: Path):
 
 
 def _analyse_and_report(proc, session, out_dir: Path, store, calibration, analysis_options=None,
-                        figures: bool = True) -> None:
+                        figures: bool = True, force: bool = False) -> None:
     from workbench.procedure import run_analysis
 
     options = dict(analysis_options or {})  # checked again by the procedure's analyze()
     if calibration is not None:
         options["calibration"] = _load_calibration(calibration) if isinstance(calibration, str) else calibration
-    result = run_analysis(proc, session, options, out_dir, store, figures)
+    result = run_analysis(proc, session, options, out_dir, store, figures, force)
     _print_result(result, out_dir)
     if result.calibration is not None:
         out.print(f"calibration set {result.calibration.id}"
@@ -294,7 +306,9 @@ def analyze(procedure_name: str = typer.Argument(..., metavar="PROCEDURE"),
             option: list[str] = typer.Option(None, "--option", "-o", help="Analysis option key=value."),
             calibration: str = typer.Option(None, "--calibration", help="Calibration set for validations."),
             figures: Path = typer.Option(None, "--figures", help="Write result.json and figures/ into this folder."),
-            no_figures: bool = typer.Option(False, "--no-figures", help="With --figures: write result.json only.")
+            no_figures: bool = typer.Option(False, "--no-figures", help="With --figures: write result.json only."),
+            force: bool = typer.Option(False, "--force", help="Store a calibration that fails a plausibility check, "
+                                                             "with the failed check in the set's notes.")
             ) -> None:
     """Analyse any session in the workbench format and store its calibration set (or result)."""
     from workbench.procedure import run_analysis
@@ -307,7 +321,7 @@ def analyze(procedure_name: str = typer.Argument(..., metavar="PROCEDURE"),
     session = load_session(session_dir)
     if calibration is not None:
         options["calibration"] = _load_calibration(calibration)
-    result = run_analysis(proc, session, options, figures, None if no_store else Store(), not no_figures)
+    result = run_analysis(proc, session, options, figures, None if no_store else Store(), not no_figures, force)
     if out_file is not None:
         from workbench.calset import atomic_write_text
         from workbench.procedure import result_json

@@ -87,6 +87,11 @@ def show(ref: str = typer.Argument(..., help="Set id (or prefix), or a calibrati
     out.print(f"unit {cal.unit.serial} ({cal.unit.model}), created {cal.created}")
     out.print(f"procedures: {', '.join(cal.provenance.procedures) or '—'}; sessions: "
               f"{len(cal.provenance.sessions)}; software {cal.provenance.software_version}")
+    from workbench.plausibility import forced_failures
+
+    for text in forced_failures(cal):
+        out.print(styled("forced past a failed plausibility check:", "bold red", f" {text}"), highlight=False,
+                  soft_wrap=True)
     for triad in cal.triads:
         out.print(_triad_table(cal, triad))
         ref_text = thermal_reference(cal, triad)
@@ -134,12 +139,19 @@ def diff(old: str = typer.Argument(..., help="Older set: id or JSON file."),
 @sets_app.command("export")
 def export(ref: str = typer.Argument(..., help="Set id (or prefix) or calibration JSON file."),
            format: str = typer.Option("json", "--format", "-f", help="Export format."),
-           out_file: Path = typer.Option(None, "--out", "-o", help="Write to this file (default: stdout).")) -> None:
-    """Export a set: json, yaml and the formats listed by `workbench sets formats`."""
+           out_file: Path = typer.Option(None, "--out", "-o", help="Write to this file (default: stdout)."),
+           force: bool = typer.Option(False, "--force", help="Export a set that fails a plausibility check "
+                                                            "(the failed check goes into its notes).")) -> None:
+    """Export a set: json, yaml and the formats listed by `workbench sets formats`.
+
+    The set passes the plausibility gate first (:mod:`workbench.plausibility`): an implausible one
+    (or one stored with ``--force`` past a failed check) is refused, nothing written, unless ``--force``.
+    """
     from workbench.calset import atomic_write_text
+    from workbench.plausibility import gate
 
     ex = exporter(format)
-    result = ex.export(load_set_ref(ref))
+    result = ex.export(gate(load_set_ref(ref), force=force, what="export"))
     for item in result.dropped:
         out.print(styled("dropped:", "yellow", f" {item}"), highlight=False)
     if out_file is None:
@@ -170,12 +182,15 @@ def approve(ref: str = typer.Argument(..., help="Stored set id (or prefix)."),
 @sets_app.command("merge")
 def merge_cmd(refs: list[str] = typer.Argument(..., help="Partial sets of one unit, oldest first."),
               out_file: Path = typer.Option(None, "--out", "-o", help="Also write the merged set here."),
-              no_store: bool = typer.Option(False, "--no-store", help="Do not store the merged set.")) -> None:
-    """Merge partial sets (e.g. accel from one procedure, gyro noise from another) into one."""
+              no_store: bool = typer.Option(False, "--no-store", help="Do not store the merged set."),
+              force: bool = typer.Option(False, "--force", help="Keep a merged set that fails a plausibility check "
+                                                               "(the failed check goes into its notes).")) -> None:
+    """Merge partial sets (e.g. accel from one procedure, gyro noise from another) into one (plausibility-gated)."""
     from workbench.calset import merge
+    from workbench.plausibility import gate
     from workbench.store import Store
 
-    merged = merge(*[load_set_ref(r) for r in refs])
+    merged = gate(merge(*[load_set_ref(r) for r in refs]), force=force, what="merged calibration")
     if out_file is not None:
         merged.save(out_file)
     if not no_store:

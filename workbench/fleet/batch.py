@@ -14,7 +14,7 @@ import json
 import logging
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from workbench.errors import WorkbenchError
@@ -27,7 +27,7 @@ def analyze_one(procedure: str, session_dir: str, options: Mapping | None = None
     Runs in a worker process. Exceptions become ``ok: False`` with a one-line ``error``. The set
     travels as an object: the store serialises it once, in the submitting process.
     """
-    from workbench.procedure import result_json, used_options, with_session_provenance
+    from workbench.procedure import analysed, result_json
     from workbench.registry import procedure as get_procedure
     from workbench.session import load_session
 
@@ -36,8 +36,7 @@ def analyze_one(procedure: str, session_dir: str, options: Mapping | None = None
         proc = get_procedure(procedure)
         # procedures that stream long records (LAZY_OK) get the samples left on disk: bounded memory
         session = load_session(session_dir, lazy=bool(getattr(proc, "LAZY_OK", False)))
-        result = with_session_provenance(proc.analyze(session, **dict(options or {})), session)
-        result = replace(result, options=used_options(proc, options))
+        result = analysed(proc, session, options)  # through the plausibility gate: a wrong set is an error
         if result.calibration is not None:
             result.calibration.to_dict()  # validates here: an invalid set fails this session, store or not
         outcome.update(
