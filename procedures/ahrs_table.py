@@ -86,7 +86,13 @@ def sequence(spec, **options) -> Sequence:
     o = check_options(NAME, OPTIONS, options, "sequence")
     if "mag" not in getattr(spec, "triads", ("mag",)):
         raise ProcedureError(f"{NAME}: the unit has no magnetometer (the AHRS heading needs one)")
-    r1, r2 = (float(np.radians(r)) for r in o["rates_dps"])
+    rates = o["rates_dps"]
+    if len(rates) != 2 or not all(isinstance(r, (int, float)) and not isinstance(r, bool) and r != 0 for r in rates):
+        raise ProcedureError(f"{NAME}: rates_dps={rates!r} (deg/s) must be two non-zero rates (out, back)")
+    mounts = o["mounts"]
+    if not mounts or not all(isinstance(m, (list, tuple)) and len(m) == 2 for m in mounts):
+        raise ProcedureError(f"{NAME}: mounts={mounts!r} (deg) must be a list of [roll, pitch] pairs")
+    r1, r2 = (float(np.radians(r)) for r in rates)
     steps = []
     for roll, pitch in o["mounts"]:
         mount = mount_from_euler("YX", [pitch, roll])
