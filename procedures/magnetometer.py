@@ -6,7 +6,11 @@ applied to the level z-down mount), either ``yaw_steps`` static holds evenly spa
 (``mode="continuous"``). The default fixture tilts ±30° about x and y; a level fixture
 (``[[0, 0]]``) supports only the 2D method.
 
-Analysis (``workbench analyze magnetometer SESSION_DIR``): the fit points from the session
+Analysis (``workbench analyze magnetometer SESSION_DIR``). A session with ``free`` steps (the unit
+turned by hand) is fitted from its own accelerometer, never a table
+(:mod:`workbench.analysis.mag_free`): constant-dip fit of hard/soft iron and the mag-to-IMU rotation,
+printed with truth-free quality figures (field-norm RMS, field-to-gravity angle spread, in sample and
+held out, beside a plain ellipsoid). Otherwise: the fit points from the session
 (static means, ≤1° blocks of rotation), the estimator chosen automatically with its reason
 (or ``method``), hard iron, soft iron, field norm, dip, declination, mag-to-IMU rotation and
 heading error against the table azimuth (:mod:`workbench.analysis.magnetometer`). Options:
@@ -22,6 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from workbench import units
+from workbench.analysis.mag_free import calibrate_free
 from workbench.analysis.mag_select import METHODS
 from workbench.analysis.magnetometer import calibrate, points_from_session, triad_calibration
 from workbench.calset import CalibrationSet
@@ -78,15 +83,19 @@ def sequence(spec, **options) -> Sequence:
 def analyze(session: Session, **options) -> ProcedureResult:
     """Calibrate the magnetometer from a session of yaw sweeps (see the module docstring)."""
     o = check_options(NAME, OPTIONS, options, "analysis")
-    points = points_from_session(session, reject_spikes=o["robust"] is not False)
     decl = o.si("declination_deg")
     accel = None if o["accel_calibration"] is None else CalibrationSet.load(o["accel_calibration"]).model("accel")
     # the field magnitude: the option, else the reference the rig's site records, else unknown
     norm = o["field_norm_ut"] if o["field_norm_ut"] is not None else session.site.field_norm_ut
-    cal = calibrate(points, method=str(o["method"]), robust=o["robust"],
-                    field_norm_ut=None if norm is None else float(norm),
-                    declination=decl, accel_model=accel, reference=_igrf(session) if o["igrf"] else None,
-                    source=session.name)
+    norm = None if norm is None else float(norm)
+    reference = _igrf(session) if o["igrf"] else None
+    if session.steps_of_kind("free"):  # by hand: gravity from the unit's own accelerometer, never the table
+        cal = calibrate_free(session, method=str(o["method"]), robust=o["robust"], field_norm_ut=norm,
+                             accel_model=accel, reference=reference)
+    else:
+        points = points_from_session(session, reject_spikes=o["robust"] is not False)
+        cal = calibrate(points, method=str(o["method"]), robust=o["robust"], field_norm_ut=norm,
+                        declination=decl, accel_model=accel, reference=reference, source=session.name)
     fit = cal.fit
     calset = CalibrationSet(unit=session.unit, triads={"mag": triad_calibration(fit)},
                             notes={NAME: {"method": fit.method, "reason": cal.choice.reason}})
@@ -141,13 +150,20 @@ def summary_lines(cal) -> list[str]:
                 if cal.baseline_heading is not None else "")
         lines.append(f"heading error vs table (tilt from {cal.heading.tilt_source}): "
                      f"RMS {np.degrees(cal.heading.rms):.3g}° (uncalibrated {np.degrees(cal.raw_heading.rms):.3g}°{base})")
+    if cal.free_quality is not None:
+        lines += cal.free_quality.lines(fit.method)
     return lines
 
 
 def figures(result: ProcedureResult) -> dict:
-    """Point cloud (raw vs calibrated) and heading error vs table azimuth (paper 004 Fig. 15)."""
+    """Point cloud (raw vs calibrated) and heading error vs table azimuth (paper 004 Fig. 15); for a hand-held
+    fit, the field norm and field-to-gravity angle against time instead of the heading error."""
     from workbench.plots.magnetometer import plot_cloud, plot_heading_error
 
     if result.payload is None:
         raise AnalysisError(f"{NAME}: the result carries no fit to draw (payload missing)")
+    if result.payload.free_quality is not None:
+        from workbench.plots.mag_free import plot_free_quality
+
+        return {"mag_cloud": plot_cloud(result.payload), "mag_free_quality": plot_free_quality(result.payload.free_quality)}
     return {"mag_cloud": plot_cloud(result.payload), "mag_heading_error": plot_heading_error(result.payload)}

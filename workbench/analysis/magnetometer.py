@@ -20,6 +20,7 @@ The model and the scale convention are in :mod:`workbench.analysis.mag_fit`.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -28,10 +29,14 @@ from workbench.analysis import mag_attitude, mag_ellipsoid, mag_fit2d, mag_quali
 from workbench.analysis.mag_fit import FIELD_RANGE_UT, MagFit
 from workbench.analysis.mag_heading import HeadingEvaluation, evaluate_heading
 from workbench.analysis.mag_reference import ReferenceField
+from workbench.angles import circular_mean
 from workbench.calset import TriadCalibration
 from workbench.errors import AnalysisError
 from workbench.model import TriadModel
 from workbench.session import Session
+
+if TYPE_CHECKING:
+    from workbench.analysis.mag_free import FreeQuality
 
 MIN_POINTS = {"2d": 6, "2d-minmax": 6, "sphere": 8, "ellipsoid": 15, "algebraic": 15, "dip": 15, "attitude": 10}
 STATIC_KINDS = ("static", "soak", "ramp")
@@ -79,6 +84,7 @@ class MagCalibration:
     points: MagPoints
     warnings: tuple[str, ...]
     reference: ReferenceField | None = None
+    free_quality: FreeQuality | None = None  # the truth-free figures of a hand-held fit
 
     def to_dict(self) -> dict:
         """JSON-ready result (SI, angles in rad unless the key says ``_deg``)."""
@@ -89,6 +95,7 @@ class MagCalibration:
                 "baseline": None if self.baseline is None else self.baseline.to_dict(),
                 "baseline_heading": None if self.baseline_heading is None else self.baseline_heading.to_dict(),
                 "reference_field": None if self.reference is None else self.reference.to_dict(),
+                "free_quality": None if self.free_quality is None else self.free_quality.to_dict(),
                 "n_points": len(self.points), "warnings": list(self.warnings)}
 
 
@@ -117,8 +124,7 @@ def points_from_session(session: Session, block_deg: float = 1.0, reject_spikes:
             continue
         a = df[["ax", "ay", "az"]].to_numpy(float)
         if st.kind in STATIC_KINDS:
-            angle = (float(np.angle(np.mean(np.exp(1j * df["table_angle"].to_numpy(float)))))  # circular mean
-                     if "table_angle" in df else st.table_angle)
+            angle = circular_mean(df["table_angle"].to_numpy(float)) if "table_angle" in df else st.table_angle
             groups = [(np.arange(len(df)), angle)]
         else:
             t = df["t"].to_numpy(float)
@@ -175,13 +181,21 @@ def _down(points: MagPoints) -> np.ndarray | None:
     return None
 
 
-def _fit(method: str, points: MagPoints, down: np.ndarray | None, field_norm_ut, robust: bool | str,
-         notes: tuple[str, ...] = ()) -> MagFit:
+def fit_method(method: str, points: MagPoints, down: np.ndarray | None, field_norm_ut, robust: bool | str,
+               notes: tuple[str, ...] = ()) -> MagFit:
+    """Fit one named estimator to ``points`` (``down`` (N, 3) unit down directions or None; see :func:`calibrate`).
+
+    A 3D fit on planar points and a 2D fit on 3D points are refused (AnalysisError naming the cloud's thickness).
+    """
     mag = points.mag
     flat = mag_quality.thickness(mag)
     if method in ("sphere", "ellipsoid", "algebraic", "dip", "attitude") and flat < mag_quality.FLAT_LIMIT_UT:
         raise AnalysisError(f"{method} fit: all points lie in one plane (cloud {flat:.3g} µT thick): a 3D fit needs "
                             "tilted positions; use method '2d' for level data")
+    if method in ("2d", "2d-minmax") and flat >= mag_quality.FLAT_LIMIT_UT:
+        raise AnalysisError(f"{method} fit: the points are not level (cloud {flat:.3g} µT thick >= "
+                            f"{mag_quality.FLAT_LIMIT_UT:g} µT): a 2D fit would put the tilt into the hard iron; "
+                            "use method 'auto' or a 3D method")
     if method in ("2d", "2d-minmax"):
         dmean = down.mean(axis=0) if down is not None else np.array([0.0, 0.0, 1.0])
         return (mag_fit2d.fit_2d(mag, dmean, robust) if method == "2d" else mag_fit2d.fit_2d_minmax(mag, dmean, robust))
@@ -202,7 +216,8 @@ def _fit(method: str, points: MagPoints, down: np.ndarray | None, field_norm_ut,
 
 def calibrate(points: MagPoints, method: str = "auto", robust: bool | str = False, field_norm_ut: float | None = None,
               declination: float | None = None, baseline: bool = True, accel_model: TriadModel | None = None,
-              reference: ReferenceField | None = None, source: str = "magnetometer data") -> MagCalibration:
+              reference: ReferenceField | None = None, source: str = "magnetometer data",
+              data: str | None = None) -> MagCalibration:
     """Calibrate a magnetometer from ``points``.
 
     Parameters
@@ -219,6 +234,7 @@ def calibrate(points: MagPoints, method: str = "auto", robust: bool | str = Fals
         first (an uncalibrated accelerometer's bias tilts the gravity direction: 20 mg ~ 1.1°)
     reference : a geomagnetic model's field at the site (:mod:`mag_reference`): the fitted norm
         (when estimated) and dip are checked against it (warnings)
+    data : a phrase naming the data the points come from; it leads the reason of the choice
 
     The heading error is evaluated when the attitude is known, with the tilt from the
     calibrated accelerometer when ``accel_model`` is given, else from the table attitude (so
@@ -239,12 +255,14 @@ def calibrate(points: MagPoints, method: str = "auto", robust: bool | str = Fals
         choice = mag_select.choose(flat, raw_cov, spread, points.attitude is not None)
     else:
         choice = mag_select.Choice(method, "chosen by the user")
+    if data:
+        choice = mag_select.Choice(choice.method, f"{data}; {choice.reason}")
     check_points(points.mag, choice.method, source)
     notes = ()
     if choice.method == "dip" and accel_model is None:
         notes = ("dip fit with the uncalibrated accelerometer: its bias tilts the gravity direction (20 mg ~ 1.1°) "
                  "and biases the fit; give the accelerometer calibration",)
-    fit = _fit(choice.method, points, down, field_norm_ut, robust, notes)
+    fit = fit_method(choice.method, points, down, field_norm_ut, robust, notes)
     quality = mag_quality.assess(fit, points.mag, down, field_norm_ut)
     head = raw_head = base = base_head = None
     if points.attitude is not None:

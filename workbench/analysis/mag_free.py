@@ -1,0 +1,259 @@
+"""Magnetometer calibration from a unit turned by hand (``free`` steps): no table, gravity from the unit.
+
+On a ``free`` step nothing but the unit's own sensors knows the attitude, so the fit never uses a
+table angle or mount. The points (:func:`free_points`) are block means (``block_s``) of the
+magnetometer and the accelerometer; a block counts as quasi-static (its specific force is gravity)
+when its norm is within ``QUASI_STATIC_TOL`` of the local gravity (the median norm over the still
+stretches the stationarity detector finds, :mod:`workbench.analysis.stationarity`, else over all
+blocks). Only quasi-static blocks are fitted: the dip constraint (the angle between field and
+gravity is constant, :func:`workbench.analysis.mag_attitude.fit_dip`) then fixes hard iron, soft
+iron and the magnetometer-to-IMU rotation together.
+
+:func:`holdout_quality` gives the truth-free figures printed with every hand-held fit: the RMS of
+the calibrated field norm (% of the fitted norm) and the spread (standard deviation, rad) of the
+field-to-gravity angle, on all points and held out (fitted on the first half in time, evaluated
+on the second), for the fit and for a plain 10-coefficient algebraic ellipsoid on the same points.
+
+Public: :data:`QUASI_STATIC_TOL`, :class:`FreeData`, :func:`free_points`, :class:`FitFigures`,
+:class:`FreeQuality`, :func:`figures_of`, :func:`holdout_quality`, :func:`calibrate_free`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from workbench.analysis import mag_ellipsoid, mag_spikes, stationarity
+from workbench.analysis.mag_attitude import down_direction
+from workbench.analysis.mag_fit import MagFit
+from workbench.analysis.mag_quality import gravity_spread
+from workbench.analysis.magnetometer import MIN_POINTS, MagCalibration, MagPoints, calibrate, fit_method
+from workbench.errors import AnalysisError
+from workbench.session import Session
+
+QUASI_STATIC_TOL = 0.03  # relative deviation of the block's |f| from local gravity (3 %: ~1.7° worst-case tilt error)
+BLOCK_S = 0.05  # s, length of one fit point's block
+MIN_STILL_STRETCHES = 6  # still stretches (orientations) for a fit on still blocks alone
+MIN_STILL_TILT = float(np.radians(30.0))  # rad, spread of their gravity directions
+
+
+def _good(session: Session, triad: str, step: int, n: int) -> np.ndarray:
+    """Samples (n,) of step ``step`` usable for ``triad`` (not flagged repeated or saturated by the import)."""
+    good = getattr(session, "good", None)
+    if good is None or session.samples is None or "flags" not in session.samples:
+        return np.ones(n, bool)
+    return np.asarray(good(triad, step), bool)
+
+
+@dataclass(frozen=True)
+class FreeData:
+    """Points of the ``free`` steps: ``mag`` (N, 3) µT, ``accel`` (N, 3) m/s^2 block means, ``t`` (N,) s,
+    ``step`` (N,), ``quasi_static`` (N,) bool, ``still`` (N,) bool (every sample of the block still); ``gravity`` m/s^2 the local |f| used;
+    ``still_stretches`` the number found, ``still_s`` their total length, ``spike_t`` s."""
+
+    mag: np.ndarray
+    accel: np.ndarray
+    t: np.ndarray
+    step: np.ndarray
+    quasi_static: np.ndarray
+    still: np.ndarray
+    gravity: float
+    still_stretches: int
+    still_s: float
+    steps: tuple[int, ...]
+    spike_t: np.ndarray
+
+    @property
+    def uses_still(self) -> bool:
+        """Whether the still blocks alone carry the fit: at least :data:`MIN_STILL_STRETCHES` stretches whose
+        gravity directions span more than :data:`MIN_STILL_TILT` (else the quasi-static blocks do)."""
+        if self.still_stretches < MIN_STILL_STRETCHES or self.still.sum() < 15:
+            return False
+        return gravity_spread(down_direction(self.accel[self.still])) > MIN_STILL_TILT
+
+    def fit_mask(self) -> np.ndarray:
+        """(N,) the blocks fitted: the still ones when they suffice (:attr:`uses_still`), else the quasi-static ones."""
+        return self.still if self.uses_still else self.quasi_static
+
+    def describe(self) -> str:
+        """One phrase naming the data: steps, blocks fitted and why, still stretches."""
+        names = ", ".join(str(s) for s in self.steps)
+        head = (f"free step{'s' if len(self.steps) > 1 else ''} {names} (by hand, no table attitude), "
+                f"{self.still_stretches} still stretch(es) ({self.still_s:.1f} s): ")
+        if self.uses_still:
+            return head + f"fitted on the {int(self.still.sum())} {BLOCK_S * 1e3:g}-ms blocks of the still stretches"
+        return head + (f"too few still orientations, fitted on the {int(self.quasi_static.sum())} of {len(self.t)} "
+                       f"{BLOCK_S * 1e3:g}-ms blocks that are quasi-static (|f| within {QUASI_STATIC_TOL:.0%} of "
+                       f"{self.gravity:.3f} m/s²)")
+
+
+def free_points(session: Session, block_s: float = BLOCK_S, reject_spikes: bool = True) -> FreeData:
+    """Block means of the magnetometer and accelerometer on the session's ``free`` steps.
+
+    Samples the import flagged (repeated or saturated) are left out of the means; with
+    ``reject_spikes``, magnetometer spikes too (:mod:`mag_spikes`). Raises AnalysisError when
+    there is no free step or no block with samples.
+    """
+    steps = session.steps_of_kind("free")
+    if not steps:
+        raise AnalysisError(f"{session.name}: no free step")
+    if not session.has_mag:
+        raise AnalysisError(f"{session.name}: samples have no magnetometer columns mx, my, mz")
+    frames = [(st, session.step_samples(st.index)) for st in steps]
+    frames = [(st, df) for st, df in frames if len(df)]
+    raw = [df[["mx", "my", "mz"]].to_numpy(float) for _, df in frames]
+    spikes = (mag_spikes.spike_mask([mag_spikes.running_median_residual(m) for m in raw]) if reject_spikes
+              else [np.zeros(len(m), bool) for m in raw])
+    mags, accs, ts, labels, norms_still, spike_t, blk_still = [], [], [], [], [], [], []
+    n_still, still_s = 0, 0.0
+    for (st, df), m, spike in zip(frames, raw, spikes):
+        t = df["t"].to_numpy(float)
+        a = df[["ax", "ay", "az"]].to_numpy(float)
+        g = df[["gx", "gy", "gz"]].to_numpy(float)
+        ok_m = _good(session, "mag", st.index, len(df)) & ~spike
+        ok_a = _good(session, "accel", st.index, len(df))
+        spike_t.append(t[spike])
+        still = np.zeros(len(df), bool)
+        if len(df) >= max(3, int(0.5 * session.sample_rate_hz)):
+            found = stationarity.detect(g, a, session.sample_rate_hz)
+            still = found.still
+            n_still += len(found.stretches)
+            still_s += float(still.sum() / session.sample_rate_hz)
+            if still.any():
+                norms_still.append(np.linalg.norm(a[still & ok_a], axis=1))
+        block = np.floor((t - t[0]) / block_s).astype(int)
+        for k in np.unique(block):
+            sel = block == k
+            sm, sa = sel & ok_m, sel & ok_a
+            if not sm.any() or not sa.any():
+                continue
+            mags.append(m[sm].mean(axis=0))
+            accs.append(a[sa].mean(axis=0))
+            ts.append(float(t[sel].mean()))
+            labels.append(st.index)
+            blk_still.append(bool(still[sel].all()))
+    if not mags:
+        raise AnalysisError(f"{session.name}: free steps have no samples usable for a magnetometer fit")
+    acc = np.array(accs)
+    norm = np.linalg.norm(acc, axis=1)
+    still_norms = np.concatenate(norms_still) if norms_still else np.zeros(0)
+    grav = float(np.median(still_norms)) if len(still_norms) else float(np.median(norm))
+    quasi = np.abs(norm / grav - 1.0) < QUASI_STATIC_TOL
+    return FreeData(np.array(mags), acc, np.array(ts), np.array(labels), quasi, np.array(blk_still), grav, n_still, still_s,
+                    tuple(st.index for st, _ in frames), np.concatenate(spike_t) if spike_t else np.zeros(0))
+
+
+@dataclass(frozen=True)
+class FitFigures:
+    """Truth-free figures of one calibration on a set of points: field-norm RMS (fraction of the norm)
+    and the standard deviation of the field-to-gravity angle (rad), in sample and held out."""
+
+    norm_rms: float
+    angle_spread: float
+    norm_rms_held_out: float
+    angle_spread_held_out: float
+
+    def to_dict(self) -> dict:
+        return {"field_norm_rms_pct": 100 * self.norm_rms, "angle_spread_deg": float(np.degrees(self.angle_spread)),
+                "field_norm_rms_pct_held_out": 100 * self.norm_rms_held_out,
+                "angle_spread_deg_held_out": float(np.degrees(self.angle_spread_held_out))}
+
+
+@dataclass(frozen=True)
+class FreeQuality:
+    """The figures of the fit and of the plain algebraic ellipsoid on the same points (``baseline``,
+    None if it fails), the number of points and where the halves split (``split_t`` s)."""
+
+    fit: FitFigures
+    baseline: FitFigures | None
+    n_points: int
+    split_t: float
+    notes: tuple[str, ...] = ()
+    series: dict | None = None  # per point: t s; norm (fraction) and angle rad under each fit (for figures)
+
+    def to_dict(self) -> dict:
+        return {"fit": self.fit.to_dict(), "plain_ellipsoid": None if self.baseline is None else self.baseline.to_dict(),
+                "n_points": self.n_points, "split_t_s": self.split_t, "notes": list(self.notes)}
+
+    def lines(self, method: str) -> list[str]:
+        """Lines for people (%, °)."""
+        def row(name, f):
+            return (f"{name}: field-norm RMS {100 * f.norm_rms:.2f} % (held out {100 * f.norm_rms_held_out:.2f} %), "
+                    f"field-to-gravity angle spread {np.degrees(f.angle_spread):.2f}° "
+                    f"(held out {np.degrees(f.angle_spread_held_out):.2f}°)")
+        out = [f"hand-held quality, no truth needed ({self.n_points} points fitted; held out = fitted before "
+               f"t = {self.split_t:.1f} s, judged after):", "  " + row(method, self.fit)]
+        out.append("  " + (row("plain 10-coefficient ellipsoid", self.baseline) if self.baseline is not None
+                           else "plain 10-coefficient ellipsoid: " + "; ".join(self.notes)))
+        return out
+
+
+def point_values(fit: MagFit, mag: np.ndarray, down: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per point: calibrated field norm relative to the fitted norm minus 1 (N,), and the angle (N,) rad
+    between the calibrated field and the down direction, for raw points ``mag`` (N, 3) µT and unit down
+    directions ``down`` (N, 3), IMU frame."""
+    h = fit.compensate(mag)
+    hn = np.linalg.norm(h, axis=1)
+    return hn / fit.field_norm_ut - 1.0, np.arccos(np.clip(np.sum(h * down, axis=1) / hn, -1.0, 1.0))
+
+
+def figures_of(fit: MagFit, mag: np.ndarray, down: np.ndarray) -> tuple[float, float]:
+    """(field-norm RMS as a fraction of the fitted norm, std of the field-to-gravity angle rad) of ``fit``
+    on raw points ``mag`` (N, 3) µT with unit down directions ``down`` (N, 3), IMU frame."""
+    norm, angle = point_values(fit, mag, down)
+    return float(np.sqrt(np.mean(norm**2))), float(np.std(angle))
+
+
+def holdout_quality(fitter: Callable[[np.ndarray, np.ndarray], MagFit], fit: MagFit, mag: np.ndarray,
+                    accel: np.ndarray, t: np.ndarray) -> FreeQuality:
+    """Figures of ``fit`` (fitted on all points) and of ``fitter(mag, accel)`` refitted on the first half in
+    time and judged on the second; the same for the plain algebraic ellipsoid (see the module docstring).
+    ``mag`` (N, 3) µT, ``accel`` (N, 3) m/s^2, ``t`` (N,) s of the points fitted."""
+    down = down_direction(accel)
+    split = float(np.median(t))
+    first, second = t <= split, t > split
+    notes: list[str] = []
+
+    series: dict = {"t": t}
+
+    def figures(name: str, fit_all: MagFit, fit_half: MagFit) -> FitFigures:
+        a, b = figures_of(fit_all, mag, down)
+        c, d = figures_of(fit_half, mag[second], down[second])
+        series[f"{name}_norm"], series[f"{name}_angle"] = point_values(fit_all, mag, down)
+        return FitFigures(a, b, c, d)
+
+    ours = figures("fit", fit, fitter(mag[first], accel[first]))
+    try:
+        base = figures("plain", mag_ellipsoid.fit_algebraic_plain(mag), mag_ellipsoid.fit_algebraic_plain(mag[first]))
+    except AnalysisError as exc:
+        base = None
+        notes.append(f"failed ({exc})")
+    return FreeQuality(ours, base, len(mag), split, tuple(notes), series)
+
+
+def calibrate_free(session: Session, method: str = "auto", robust: bool | str = False,
+                   field_norm_ut: float | None = None, accel_model=None, reference=None) -> MagCalibration:
+    """Calibrate the magnetometer from the session's ``free`` steps (see the module docstring).
+
+    The quasi-static points go to :func:`workbench.analysis.magnetometer.calibrate` with no attitude
+    (so ``auto`` picks the constant-dip fit when the gravity directions span several tilts), the
+    reason naming the data; the result carries the :class:`FreeQuality` figures. ``accel_model``
+    compensates the accelerometer first (its bias tilts the gravity direction).
+    """
+    data = free_points(session, reject_spikes=robust is not False)
+    q = data.fit_mask()
+    if q.sum() < MIN_POINTS["dip"]:
+        raise AnalysisError(f"{session.name}: {data.describe()}: too few quasi-static points for a fit "
+                            f"(need {MIN_POINTS['dip']}); hold the unit still or turn it more slowly")
+    points = MagPoints(data.mag[q], data.accel[q], None, None, data.step[q], None, data.t[q], data.spike_t)
+    cal = calibrate(points, method=method, robust=robust, field_norm_ut=field_norm_ut, accel_model=accel_model,
+                    reference=reference, source=session.name, data=data.describe())
+    accel = cal.points.accel  # compensated when the accelerometer calibration was given
+
+    def refit(m: np.ndarray, a: np.ndarray) -> MagFit:
+        return fit_method(cal.fit.method, MagPoints(m, a), down_direction(a), field_norm_ut, robust)
+
+    quality = holdout_quality(refit, cal.fit, points.mag, accel, points.t)
+    return replace(cal, free_quality=quality)
