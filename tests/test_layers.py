@@ -24,7 +24,8 @@ VALUE_MAY_IMPORT = ("workbench.errors",)
 ABOVE_ANALYSES = ("workbench.procedure", "workbench.registry", "workbench.jobs", "workbench.cli", "workbench.runner",
                   "workbench.drivers", "workbench.sim", "workbench.store", "workbench.fleet", "workbench.plots",
                   "procedures", "dashboard")
-FIXTURE_READERS = ("workbench.grades", "workbench.rigconfig", "workbench.rigsites", "workbench.importer")
+FIXTURE_READERS = ("workbench.grades", "workbench.rigconfig", "workbench.rigsites", "workbench.importer",
+                   "workbench.importers")
 
 RULES = [
     # (modules, forbidden imports, why)

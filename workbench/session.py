@@ -34,7 +34,10 @@ GYRO = ["gx", "gy", "gz"]
 ACCEL = ["ax", "ay", "az"]
 MAG = ["mx", "my", "mz"]
 REQUIRED_COLUMNS = ["t", "step", *GYRO, *ACCEL]
-OPTIONAL_COLUMNS = [*MAG, "temp", "table_angle", "table_rate", "odo_distance"]
+OPTIONAL_COLUMNS = [*MAG, "temp", "table_angle", "table_rate", "odo_distance", "flags"]
+# bits of the optional ``flags`` column (imported recordings): a set bit leaves the sample out of that triad's fits
+FLAG_SATURATED = {"gyro": 1, "accel": 2, "mag": 4}  # a value at the stream's declared range
+FLAG_REPEATED = {"gyro": 32, "accel": 16, "mag": 8}  # a stale read: the sensor had not updated
 
 
 @dataclass(frozen=True)
@@ -208,6 +211,15 @@ class Session:
         if not self.has_mag:
             raise SessionError(f"{self.name}: samples have no magnetometer columns mx, my, mz")
         return self._cols(MAG, index)
+
+    def good(self, triad: str, index: int | None = None) -> np.ndarray:
+        """(N,) bool: the samples (all, or of step ``index``) whose ``flags`` leave ``triad`` usable in fits
+        (no saturated or repeated bit of that triad; all True without a ``flags`` column)."""
+        df = self.samples if index is None else self.step_samples(index)
+        if "flags" not in df.columns:
+            return np.ones(len(df), bool)
+        bits = FLAG_SATURATED[triad] | FLAG_REPEATED[triad]
+        return (df["flags"].to_numpy(np.int64) & bits) == 0
 
     def _cols(self, cols: list[str], index: int | None) -> np.ndarray:
         if self.samples is None:

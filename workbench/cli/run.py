@@ -335,12 +335,16 @@ def analyze(procedure_name: str = typer.Argument(..., metavar="PROCEDURE"),
 
 
 def import_cmd(profile: Path = typer.Argument(..., help="Import profile (YAML)."),
-               data_file: Path = typer.Argument(..., help="The recording to import (CSV or Parquet)."),
+               data_file: Path = typer.Argument(..., metavar="DATA", help="The recording to import: its file "
+                                                "(CSV or Parquet), or its folder for a profile with streams."),
                out_dir: Path = typer.Option(..., "--out", help="Session folder to create.")) -> None:
     """Import another tool's recording into a session folder through an import profile."""
     from workbench.importer import import_file
+    from workbench.importers.summary import summary_lines
 
     session = import_file(profile, data_file, out_dir)
+    for line in summary_lines(session.options["import"]):
+        out.print(line, soft_wrap=True)
     out.print(f"imported {len(session.samples)} samples, {len(session.steps)} steps -> {out_dir}")
     t = Table("#", "kind", "label", "t_start s", "t_end s")
     for s in session.steps:

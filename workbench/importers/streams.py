@@ -1,0 +1,145 @@
+"""One stream of a recording: read its table, convert its columns to SI, find its sampling instants.
+
+A stream is one file of a recording (``streams.NAME`` of an import profile, or the one file of
+a single-file profile). :func:`read_stream` reads it, converts the profile's columns (unit,
+``scale``, ``offset``: lab units to SI through :mod:`workbench.units`), reconstructs the
+sampling instants (a time column, a sample counter, the row number at the rate, or a sample
+clock fitted to host arrival stamps: :mod:`workbench.importers.clock`) and detects repeated
+samples (every value equal to the previous sample's: a sensor read faster than it updates)
+and saturated samples (a value at the stream's declared ``range``).
+
+Public: :class:`Stream`, :func:`read_stream`, :func:`read_table`, :data:`TRIAD_OF`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from workbench.errors import ImportProfileError, WorkbenchError
+from workbench.importers.clock import ClockFit, fit_arrival_clock
+from workbench.session import ACCEL, GYRO, MAG
+from workbench.units import factor
+
+TRIAD_OF = {**{c: "gyro" for c in GYRO}, **{c: "accel" for c in ACCEL}, **{c: "mag" for c in MAG}}
+SI_UNIT = {**{c: "rad/s" for c in GYRO}, **{c: "m/s^2" for c in ACCEL}, **{c: "uT" for c in MAG},
+           "temp": "degC", "table_angle": "rad", "table_rate": "rad/s"}
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
+
+
+@dataclass(frozen=True)
+class Stream:
+    """One stream, SI: ``t`` (N,) sampling instants on the recording's clock, s; ``values`` the
+    converted columns (targets as in the session, e.g. ``gx``, ``temp``); ``repeated`` (N,) the
+    sample repeats the previous one exactly; ``saturated`` (N,) a value is at the declared range;
+    ``clock`` the arrival-stamp fit (None for other time sources); ``index`` (N,) sample counter
+    (row number unless a counter column is declared)."""
+
+    name: str
+    source: str
+    t: np.ndarray
+    values: pd.DataFrame
+    repeated: np.ndarray
+    saturated: np.ndarray
+    clock: ClockFit | None
+    index: np.ndarray
+    checks_repeats: bool
+
+    @property
+    def triads(self) -> tuple[str, ...]:
+        """Triads ('gyro', 'accel', 'mag') with at least one column in this stream."""
+        return tuple(dict.fromkeys(TRIAD_OF[c] for c in self.values.columns if c in TRIAD_OF))
+
+    @property
+    def rate_hz(self) -> float:
+        """Mean sample rate of the instants, Hz (the fitted clock's rate for arrival stamps)."""
+        if self.clock is not None:
+            return self.clock.rate_hz
+        return float(1.0 / np.median(np.diff(self.t))) if len(self.t) > 1 else float("nan")
+
+
+def read_table(path: Path, reader: Mapping, where: str) -> pd.DataFrame:
+    """A CSV or Parquet table (``reader``: type, delimiter, skip_rows, comment); WorkbenchError naming ``where``."""
+    try:
+        if path.suffix == ".parquet" or reader.get("type") == "parquet":
+            return pd.read_parquet(path)
+        return pd.read_csv(path, sep=reader.get("delimiter", ","), skiprows=reader.get("skip_rows", 0),
+                           comment=reader.get("comment"))
+    except FileNotFoundError:
+        raise WorkbenchError(f"{where}: {path}: no such file") from None
+    except Exception as exc:  # pandas/pyarrow raise many types for files that are not tables
+        raise WorkbenchError(f"{where}: {path}: not a readable recording "
+                             f"({type(exc).__name__}: {str(exc)[:120]})") from None
+
+
+def _column(raw: pd.DataFrame, col, where: str) -> np.ndarray:
+    if col not in raw.columns:
+        raise ImportProfileError(f"{where}: column {col!r} not in the file "
+                                 f"(columns: {', '.join(map(str, raw.columns[:12]))})")
+    values = pd.to_numeric(raw[col], errors="coerce").to_numpy(float)
+    bad = ~np.isfinite(values)
+    if bad.any():
+        row = int(np.argmax(bad))
+        raise ImportProfileError(f"{where}: column {col!r}: not a finite number at row {row} ({raw[col].iloc[row]!r})")
+    return values
+
+
+def convert(raw: pd.DataFrame, columns: Mapping, where: str) -> pd.DataFrame:
+    """The profile's ``columns`` of ``raw`` in SI (value * scale + offset, then unit -> SI)."""
+    out = {}
+    for target, spec in columns.items():
+        if spec["column"] not in raw.columns:
+            raise ImportProfileError(f"{where}: profile column {spec['column']!r} (for {target}) not in the file "
+                                     f"(columns: {', '.join(map(str, raw.columns[:12]))})")
+        values = _column(raw, spec["column"], f"{where}: columns.{target}")
+        values = values * float(spec.get("scale", 1.0)) + float(spec.get("offset", 0.0))
+        unit = spec.get("unit", SI_UNIT[target])
+        out[target] = values if unit == "degC" else values * factor(unit) / factor(SI_UNIT[target])
+    return pd.DataFrame(out)
+
+
+def _instants(raw: pd.DataFrame, spec: Mapping, where: str) -> tuple[np.ndarray, ClockFit | None, np.ndarray]:
+    """Sampling instants (s, first = raw stamp), the clock fit for arrival stamps, the sample counter."""
+    tspec = spec.get("time") or {}
+    rate = spec.get("rate_hz")
+    n = len(raw)
+    if "column" in tspec:
+        t = _column(raw, tspec["column"], f"{where}: time.column") * TIME_UNITS[tspec.get("unit", "s")]
+        if tspec.get("stamps", "sample") == "arrival":
+            clock = fit_arrival_clock(t, rate, f"{where}: time.column {tspec['column']!r}")
+            return clock.instants, clock, clock.sample_number
+        return t, None, np.arange(n)
+    if "counter" in tspec:
+        counter = _column(raw, tspec["counter"], f"{where}: time.counter")
+        return counter / float(rate), None, counter
+    return np.arange(n) / float(rate), None, np.arange(n)
+
+
+def read_stream(name: str, spec: Mapping, path: Path, reader: Mapping, where: str) -> Stream:
+    """Read stream ``name`` from ``path`` as ``spec`` (a checked profile entry) says; ``where`` names it in errors."""
+    raw = read_table(path, {**reader, **(spec.get("reader") or {})}, where)
+    if len(raw) == 0:
+        raise ImportProfileError(f"{where}: {path.name}: no rows")
+    values = convert(raw, spec["columns"], where)
+    t, clock, index = _instants(raw, spec, where)
+    if np.any(np.diff(t) <= 0):
+        row = int(np.argmax(np.diff(t) <= 0)) + 1
+        raise ImportProfileError(f"{where}: time: duplicate or non-increasing time at row {row} (t={t[row]})")
+    vector = [c for c in values.columns if c in TRIAD_OF]
+    checks = bool(spec.get("repeats", "flag" if vector else "ignore") == "flag") and bool(vector)
+    v = values[vector].to_numpy() if vector else np.zeros((len(values), 0))
+    repeated = np.zeros(len(values), bool)
+    if checks and len(v) > 1:
+        repeated[1:] = np.all(v[1:] == v[:-1], axis=1)
+    saturated = np.zeros(len(values), bool)
+    rng = spec.get("range")
+    if rng is not None:
+        dim = SI_UNIT[vector[0]]
+        limit = float(rng["value"]) * factor(rng.get("unit", dim)) / factor(dim)
+        # the rail itself, one LSB either way: |value| >= the declared full scale
+        saturated = np.any(np.abs(v) >= limit * (1 - 1e-9), axis=1)
+    return Stream(name, str(path), t, values, repeated, saturated, clock, index, checks)
