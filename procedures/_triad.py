@@ -1,14 +1,11 @@
-"""What the triad-calibration procedures (multiposition, rate, ferraris) share: the result dict and summary.
+"""What the triad-calibration procedures (multiposition, rate, ferraris) share: the result dict.
 
-:func:`result_dict` (each fit's estimates and sigmas, SI, with its residual table) and
-:func:`fit_summary` (lines for people in lab units from :mod:`workbench.units`).
+:func:`result_dict` (each fit's estimates and sigmas, SI, with its residual table); the summary
+lines are the fit's own (``TriadFit.summary()``).
 """
 
 from __future__ import annotations
 
-import numpy as np
-
-from workbench import units
 from workbench.analysis.turntable import TriadFit
 
 
@@ -22,54 +19,3 @@ def result_dict(fits: dict[str, TriadFit], full_scale: float | None = None) -> d
     if full_scale is not None:
         out["full_scale_rad_s"] = full_scale
     return out
-
-
-def fit_summary(fit: TriadFit, full_scale: float | None = None) -> list[str]:
-    """Lines for people in lab units: bias (mg or °/h), scale factor (ppm), misalignment (mrad),
-    nonlinearity and residuals before/after (mg, or °/h and % of full scale for a rate fit)."""
-    acc = fit.triad == "accel"
-    b_unit = "mg" if acc else "deg/h"
-
-    def pm(v, s, unit, digits=4):
-        return f"{units.fmt(v, unit, digits)} ± {units.fmt(s, unit, 2)}"
-
-    t = fit.triad
-    lines = []
-    if np.isfinite(fit.bias_sigma).any():
-        lines.append(f"{t} bias: " + ", ".join(f"{a} {pm(v, s, b_unit)}"
-                                               for a, v, s in zip("xyz", fit.bias, fit.bias_sigma)))
-    d, ds = np.diag(fit.scale_misalignment), np.diag(fit.scale_misalignment_sigma)
-    if np.isfinite(ds).any():
-        lines.append(f"{t} scale factor: " + ", ".join(f"{a} {pm(v, s, 'ppm', 5)}" for a, v, s in zip("xyz", d, ds)))
-        off = ~np.eye(3, dtype=bool)
-        worst = np.abs(fit.scale_misalignment[off]).max()
-        lines.append(f"{t} misalignment: largest |M_ij| {units.fmt(worst, 'mrad', 3)}, "
-                     f"largest sigma {units.fmt(np.nanmax(fit.scale_misalignment_sigma[off]), 'mrad', 2)}")
-    if np.isfinite(fit.nonlinearity_sigma).any():
-        lines.append(f"{t} nonlinearity (1/SI): " + ", ".join(
-            f"{a} {v:.3g} ± {s:.2g}" for a, v, s in zip("xyz", fit.nonlinearity, fit.nonlinearity_sigma)
-            if np.isfinite(s)))
-    if np.isfinite(fit.asymmetry_sigma).any():
-        lines.append(f"{t} scale-factor asymmetry (SF+ - SF-)/2: " + ", ".join(
-            f"{a} {pm(v, s, 'ppm', 3)}" for a, v, s in zip("xyz", fit.asymmetry, fit.asymmetry_sigma)))
-    if fit.g_sensitivity is not None and np.isfinite(fit.g_sensitivity_sigma).any():
-        gs = units.factor("deg/h") / units.factor("g")
-        lines.append(f"{t} g-sensitivity: largest |G_ij| {np.abs(fit.g_sensitivity).max() / gs:.3g} °/h/g "
-                     f"(largest sigma {np.nanmax(fit.g_sensitivity_sigma) / gs:.2g} °/h/g)")
-    r = fit.residuals[fit.residuals["used"]] if len(fit.residuals) else fit.residuals
-    if len(r):
-        before = np.abs(r[["before_x", "before_y", "before_z"]].to_numpy()).max()
-        after = np.abs(r[["after_x", "after_y", "after_z"]].to_numpy()).max()
-        res_unit = "mg" if acc else "deg/s"
-        line = (f"{t} max residual per step: before {units.fmt(before, res_unit, 3)}, "
-                f"after {units.fmt(after, res_unit, 3)}")
-        if full_scale:
-            line += f" ({after / full_scale * 100:.3g} % of full scale {units.fmt(full_scale, 'deg/s', 4)})"
-        lines.append(line)
-        if acc:
-            lines.append(f"{t} max | |a| - g | per step: before {units.fmt(np.abs(r['before_norm']).max(), 'mg', 3)}, "
-                         f"after {units.fmt(np.abs(r['after_norm']).max(), 'mg', 3)}")
-    for k, v in fit.notes.items():
-        if k == "earth_rate":
-            lines.append(f"{t} Earth rate: {v}")
-    return lines

@@ -34,7 +34,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from procedures._triad import fit_summary, result_dict
+from procedures._triad import result_dict
 from workbench.analysis.gyro_fit import fit_gyro_turns, turn_checks
 from workbench.analysis.turntable import TriadFit, fit_accel, fit_gyro_static
 from workbench.calset import CalibrationSet
@@ -113,12 +113,12 @@ def analyze(session: Session, **opts) -> ProcedureResult:
                              bias_instability=o.si("gyro_bias_instability_deg_h"))
     gyr = fit_gyro_turns(session, static, acc, nonlinearity_sigma=o.si("gyro_nonlinearity_ppm_per_dps"))
     checks = turn_checks(session, gyr.model(), acc.model(), window_s=o["window_s"])
-    calset = CalibrationSet(unit=session.unit, triads={"accel": acc.to_calibration(), "gyro": gyr.to_calibration()},
+    calset = CalibrationSet(unit=session.unit, triads={"accel": acc.triad_calibration(), "gyro": gyr.triad_calibration()},
                             notes={NAME: {"accel": dict(acc.notes), "gyro": dict(gyr.notes),
                                           "turns": [c.to_dict() for c in checks]}})
     result = result_dict({"accel": acc, "gyro": gyr})
     result["turns"] = [c.to_dict() for c in checks]
-    summary = fit_summary(acc) + fit_summary(gyr) + [
+    summary = acc.summary() + gyr.summary() + [
         f"turn {c.label}: compensated gyro turns {np.degrees(c.angle):.3f}° of the nominal "
         f"{np.degrees(np.linalg.norm(c.nominal)):.0f}°, "
         f"closure {np.degrees(c.closure):.3f}°, wobble {np.degrees(c.wobble_rms):.2f}° rms, "

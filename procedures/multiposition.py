@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from procedures._triad import fit_summary, result_dict
+from procedures._triad import result_dict
 from workbench.analysis.turntable import fit_accel, fit_gyro_static
 from workbench.calset import CalibrationSet
 from workbench.errors import ProcedureError
@@ -104,11 +104,11 @@ def analyze(session: Session, **opts) -> ProcedureResult:
                     bias_instability=o.si("accel_bias_instability_mg"))
     gyr = fit_gyro_static(session, None, o["earth_rate"], settle_s=o["settle_s"],
                           bias_instability=o.si("gyro_bias_instability_deg_h"))
-    calset = CalibrationSet(unit=session.unit, triads={"accel": acc.to_calibration(), "gyro": gyr.to_calibration()},
+    calset = CalibrationSet(unit=session.unit, triads={"accel": acc.triad_calibration(), "gyro": gyr.triad_calibration()},
                             notes={NAME: {"accel": dict(acc.notes), "gyro": dict(gyr.notes)}})
     return ProcedureResult(NAME, result=result_dict({"accel": acc, "gyro": gyr}), calibration=calset,
                            payload={"accel": acc, "gyro": gyr},
-                           summary=fit_summary(acc) + fit_summary(gyr), warnings=[*acc.warnings, *gyr.warnings])
+                           summary=acc.summary() + gyr.summary(), warnings=[*acc.warnings, *gyr.warnings])
 
 
 def figures(result: ProcedureResult) -> dict:

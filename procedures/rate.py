@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from procedures._triad import fit_summary, result_dict
+from procedures._triad import result_dict
 from workbench.analysis.turntable import fit_gyro_rate
 from workbench.calset import CalibrationSet
 from workbench.errors import ProcedureError
@@ -84,14 +84,14 @@ def analyze(session: Session, **opts) -> ProcedureResult:
     o = check_options(NAME, OPTIONS, opts, "analysis")
     fit = fit_gyro_rate(session, position_sigma=o.si("position_sigma_deg"))
     fs = full_scale(session, o["full_scale_dps"])
-    calset = CalibrationSet(unit=session.unit, triads={"gyro": fit.to_calibration()},
+    calset = CalibrationSet(unit=session.unit, triads={"gyro": fit.triad_calibration()},
                             notes={NAME: {"asymmetry": fit.asymmetry.tolist(),
                                           "asymmetry_sigma": [None if not np.isfinite(v) else float(v)
                                                               for v in fit.asymmetry_sigma],
                                           "note": "asymmetry (SF+ - SF-)/2 is not part of the error model; "
                                                   "M holds the mean scale factor"}})
     return ProcedureResult(NAME, result=result_dict({"gyro": fit}, fs), calibration=calset,
-                           payload={"gyro": fit, "full_scale": fs}, summary=fit_summary(fit, fs),
+                           payload={"gyro": fit, "full_scale": fs}, summary=fit.summary(fs),
                            warnings=list(fit.warnings))
 
 

@@ -27,13 +27,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from workbench.analysis.thermal import analyze_thermal, to_calibration
+from workbench.analysis.thermal import analyze_thermal
 from workbench.calset import CalibrationSet
 from workbench.errors import RigLimitError
 from workbench.options import Option, check_options, defaults
 from workbench.procedure import ProcedureResult
 from workbench.sequence import Hold, Ramp, Rotate, Sequence, Soak, with_options
-from workbench.units import fit_unit, label, to_unit
 
 NAME = "thermal"
 TITLE = "Thermal sweep (chamber soaks or ramps): bias and scale factor vs temperature"
@@ -122,21 +121,6 @@ def sequence(spec, **options) -> Sequence:
                         ramp_c_per_min=ramp_c_per_min, ramp_dwell_s=ramp_dwell_s)
 
 
-def _summary(result) -> list[str]:
-    lines = [f"thermal ({result.source}): {result.t_min_c:.1f}..{result.t_max_c:.1f} °C, t_ref {result.t_ref_c:g} °C"]
-    for q, f in result.fits.items():
-        unit = fit_unit(q)
-        rms = ", ".join(f"{v:.3g}" for v in to_unit(f.cv_rms_chosen, unit))
-        orders = ", ".join(f"{a} {k}" for a, k in zip("xyz", f.orders))
-        line = f"{q}: order {orders} (per axis), held-out RMS [{rms}] {label(unit)}"
-        if np.isfinite(f.hysteresis).any():
-            h = ", ".join(f"{a:.3g}±{b:.2g}" for a, b in zip(to_unit(f.hysteresis, unit),
-                                                             to_unit(f.hysteresis_sigma, unit)))
-            line += f"; hysteresis (up - down) [{h}] {label(unit)}" + (" (modelled)" if f.hysteresis_modelled.any() else "")
-        lines.append(line)
-    return lines
-
-
 def analyze(session, **options) -> ProcedureResult:
     """Thermal analysis of a soak or ramp session -> calibration set with the thermal block."""
     opts = check_options(NAME, OPTIONS, options, "analysis")
@@ -150,8 +134,8 @@ def analyze(session, **options) -> ProcedureResult:
                                                "gyro": opts.si("gyro_bias_instability_deg_h")},
                              bias_rrw={"accel": opts.si("accel_rrw_m_s_h_sqrt_h"),
                                        "gyro": opts.si("gyro_rrw_deg_h_sqrt_h")})
-    return ProcedureResult(NAME, result.to_dict(), to_calibration(result, session.unit), result,
-                           _summary(result), list(result.warnings))
+    return ProcedureResult(NAME, result.to_dict(), result.to_calibration(session.unit), result,
+                           result.summary(), list(result.warnings))
 
 
 def figures(result: ProcedureResult) -> dict:

@@ -15,6 +15,9 @@ import json
 import pytest
 
 from workbench import __version__, registry
+from workbench.analysis.northfinding import NorthFinding
+from workbench.analysis.thermal import ThermalResult
+from workbench.analysis.turntable_fit import TriadFit
 from workbench.calset import CalibrationSet
 from workbench.grades import draw_unit, load_spec
 from tests.nav.conftest import calibration_from_truth
@@ -86,3 +89,19 @@ def test_procedure_follows_the_protocols(name, tmp_path):
     assert declared <= set(stored["options"]), declared - set(stored["options"])
     assert set(stored["options"]) - {"calibration"} <= declared
     assert stored["warnings"] == list(res.warnings)
+
+    # the estimator's own result object(s) behind the procedure result follow the protocol too
+    for obj in _analysis_results(res.payload):
+        assert isinstance(obj, AnalysisResult), type(obj).__name__
+        own = obj.summary()
+        assert own and all(isinstance(line, str) for line in own)
+        json.dumps(obj.to_dict())
+
+
+# estimator result types that follow workbench.result.AnalysisResult (the rest: see docs/architecture.md)
+PROTOCOL_TYPES = (TriadFit, ThermalResult, NorthFinding)
+
+
+def _analysis_results(payload) -> list:
+    values = payload.values() if isinstance(payload, dict) else [payload]
+    return [v for v in values if isinstance(v, PROTOCOL_TYPES)]

@@ -124,6 +124,14 @@ class NorthFinding:
         """Estimated minus true azimuth, rad (None when the table's zero azimuth is unknown)."""
         return None if self.true_azimuth is None else float(angle_diff(self.azimuth, self.true_azimuth))
 
+    def to_dict(self) -> dict:
+        """JSON-ready result (``result.json``'s ``result``; keys name their lab unit, e.g. ``azimuth_deg``)."""
+        return to_result(self)[0]
+
+    def summary(self) -> list[str]:
+        """Lines for people: azimuth (°) and its sigma (mrad), per-unit scatter against theory, warnings aside."""
+        return to_result(self)[1]
+
 
 def _session_mount(session: Session, obs: Observations, max_tilt: float, axes: Sequence[int]) -> AxisGeometry:
     """The one mount of the rows' steps, checked level for the sensing ``axes`` (AnalysisError naming the step)."""

@@ -38,6 +38,7 @@ from workbench.analysis.thermal_points import (RampSeries, SoakGroup, SoakPoint,
 from workbench.analysis.thermal_poly import MAX_ORDER, PolyFit, _nan_none, fit_thermal_poly  # noqa: F401
 from workbench.analysis.thermal_settling import Settling, settling, windowed_slope  # noqa: F401
 from workbench.errors import AnalysisError, SessionError
+from workbench.units import fit_unit, label, to_unit
 
 QUANTITIES = ("gyro.bias", "gyro.scale", "accel.bias", "accel.scale")
 
@@ -71,6 +72,27 @@ class ThermalResult:
                       for tr, pts in self.soak_points.items()},
             "warnings": list(self.warnings),
         }
+
+    def summary(self) -> list[str]:
+        """Lines for people: the range and t_ref (°C), per quantity the order per axis, the held-out
+        RMS and the hysteresis in the quantity's lab unit (°/h, mg, ppm)."""
+        lines = [f"thermal ({self.source}): {self.t_min_c:.1f}..{self.t_max_c:.1f} °C, t_ref {self.t_ref_c:g} °C"]
+        for q, f in self.fits.items():
+            unit = fit_unit(q)
+            rms = ", ".join(f"{v:.3g}" for v in to_unit(f.cv_rms_chosen, unit))
+            orders = ", ".join(f"{a} {k}" for a, k in zip("xyz", f.orders))
+            line = f"{q}: order {orders} (per axis), held-out RMS [{rms}] {label(unit)}"
+            if np.isfinite(f.hysteresis).any():
+                h = ", ".join(f"{a:.3g}±{b:.2g}" for a, b in zip(to_unit(f.hysteresis, unit),
+                                                                 to_unit(f.hysteresis_sigma, unit)))
+                line += (f"; hysteresis (up - down) [{h}] {label(unit)}"
+                         + (" (modelled)" if f.hysteresis_modelled.any() else ""))
+            lines.append(line)
+        return lines
+
+    def to_calibration(self, unit):
+        """The partial calibration set of ``unit`` (a :class:`workbench.calset.Unit`): see :func:`to_calibration`."""
+        return to_calibration(self, unit)
 
 
 def fit_soaks(points: dict[str, list[SoakPoint]], t_ref_c: float = 25.0, max_order: int = MAX_ORDER,

@@ -1,6 +1,6 @@
 """Turntable fit machinery shared by the accelerometer and gyro fits: the result type and the solver.
 
-:class:`TriadFit` (estimates, sigmas, residual table, warnings, ``to_dict``, ``to_calibration``),
+:class:`TriadFit` (estimates, sigmas, residual table, warnings; ``to_dict``, ``summary``, ``to_calibration``),
 :func:`check_site`, the Gauss-Newton least squares with unobservable columns dropped, the
 misfit test that leaves out positions beyond the noise, the residual table. Constants
 :data:`AXES`, :data:`STATIC_KINDS`, :data:`MISFIT_P`, :data:`POOL_DOF`. Part of
@@ -19,7 +19,7 @@ from scipy.stats import chi2 as chi2_dist
 from workbench.analysis.position_check import (
     StepStats, deleted_residual_statistics, motion_in_static, step_name, step_stats,
 )
-from workbench.calset import TriadCalibration
+from workbench.calset import CalibrationSet, TriadCalibration
 from workbench.errors import AnalysisError
 from workbench.model import TriadModel
 from workbench.session import Session
@@ -72,13 +72,27 @@ class TriadFit:
         """The fitted :class:`TriadModel` (unobserved coefficients at their prior, 0)."""
         return TriadModel(self.bias, self.scale_misalignment, self.nonlinearity, self.g_sensitivity)
 
-    def to_calibration(self) -> TriadCalibration:
+    def triad_calibration(self) -> TriadCalibration:
         """A :class:`workbench.calset.TriadCalibration` with the 1-sigma uncertainties."""
         sigma = {"bias": self.bias_sigma, "scale_misalignment": self.scale_misalignment_sigma,
                  "nonlinearity": self.nonlinearity_sigma}
         if self.g_sensitivity is not None:
             sigma["g_sensitivity"] = self.g_sensitivity_sigma
         return TriadCalibration(self.model(), sigma)
+
+    def to_calibration(self, unit=None) -> TriadCalibration | CalibrationSet:
+        """The partial calibration set of ``unit`` (a :class:`workbench.calset.Unit`) holding this triad;
+        without a unit, the :class:`~workbench.calset.TriadCalibration` alone (:meth:`triad_calibration`)."""
+        if unit is None:
+            return self.triad_calibration()
+        return CalibrationSet(unit=unit, triads={self.triad: self.triad_calibration()})
+
+    def summary(self, full_scale: float | None = None) -> list[str]:
+        """Lines for people in lab units (:func:`workbench.analysis.turntable_summary.triad_summary`);
+        ``full_scale`` rad/s adds the residual as a percentage of it (a rate table)."""
+        from workbench.analysis.turntable_summary import triad_summary
+
+        return triad_summary(self, full_scale)
 
     def to_dict(self) -> dict:
         """JSON-ready summary (SI, NaN -> None), without the residual table."""
