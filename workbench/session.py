@@ -25,14 +25,11 @@ from scipy.spatial.transform import Rotation
 from workbench.earth import normal_gravity, rz
 from workbench.errors import SessionError
 from workbench.files import atomic_write_text, file_sha256
-from workbench.values import Unit
+from workbench.values import ACCEL, GYRO, MAG, Unit
 
 FORMAT = "workbench-session/1"
 STEP_LOG = "steps.jsonl"  # an unfinished recording's completed steps, one JSON object a line (runner.py)
 STEP_KINDS = ("static", "rate", "index", "carousel", "soak", "ramp", "drive", "free")  # free: by hand, no table
-GYRO = ["gx", "gy", "gz"]
-ACCEL = ["ax", "ay", "az"]
-MAG = ["mx", "my", "mz"]
 REQUIRED_COLUMNS = ["t", "step", *GYRO, *ACCEL]
 OPTIONAL_COLUMNS = [*MAG, "temp", "table_angle", "table_rate", "odo_distance", "flags"]
 # bits of the optional ``flags`` column (imported recordings): a set bit leaves the sample out of that triad's fits

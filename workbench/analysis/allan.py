@@ -9,11 +9,13 @@ deviation is a sum of squared finite differences of ``x`` at lag ``m`` (tau = m 
 * overlapping HDEV  sigma^2 = sum_i (x[i+3m] - 3 x[i+2m] + 3 x[i+m] - x[i])^2 / (6 tau^2 (L - 3m))
 * modified ADEV     sigma^2 = sum_j (sum_{i=j}^{j+m-1} x[i+2m] - 2x[i+m] + x[i])^2 / (2 m^2 tau^2 (L - 3m + 1))
 
-(NIST SP 1065 eq. 11, 18, 14.) The sums run in compiled kernels (numba) over the phase in
-cache-sized blocks, all lags per block, without temporaries the size of the record; the
-results equal allantools' ``oadev``/``ohdev``/``mdev`` (tested to a relative 1e-9).
+(NIST SP 1065 eq. 11, 18, 14.) Short records (up to :data:`COMPILED_WORK` squared differences
+in all) are summed with numpy, one reused buffer per lag; longer ones, and every MDEV, by the
+compiled kernels of :mod:`workbench.analysis.allan_kernels` (numba: cache-sized blocks, all lags
+per block, no temporaries the size of the record), whose ~0.9 s start-up only they repay. Both
+equal allantools' ``oadev``/``ohdev``/``mdev`` (tested to a relative 1e-9).
 
-Public: :func:`deviation`, :func:`averaging_factors`, :func:`phase`, :func:`prepare_rate_data`,
+Public: :func:`deviation`, :func:`segment_deviation`, :func:`averaging_factors`, :func:`phase`, :func:`prepare_rate_data`,
 :class:`DeviationCurve`, :data:`KINDS`.
 References: thesis (shared/seeds/000_...) sec. 1.2 (Allan variance analysis of tables 1.1-4.1);
 IEEE Std 952-1997 Annex C; NIST SP 1065.
@@ -24,7 +26,6 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
 from workbench.errors import AnalysisError
@@ -33,7 +34,7 @@ KINDS = ("oadev", "mdev", "ohdev")
 ORDER = {"oadev": 2, "ohdev": 3, "mdev": 3}  # lag multiples a deviation spans
 MIN_SAMPLES = 100
 GAP_POLICIES = ("error", "longest", "split")
-_BLOCK = 4096  # phase points per cache block (x 8 bytes x up to 4 lag windows: fits L2)
+COMPILED_WORK = 4e8  # squared differences (lags x channels x points) above which numba's start-up pays
 
 
 @dataclass(frozen=True)
@@ -139,7 +140,7 @@ def prepare_rate_data(y: np.ndarray, columns: tuple[str, ...] | list[str], sourc
     if total < MIN_SAMPLES:
         raise AnalysisError(f"{source}: {total} usable samples; Allan statistics need at least {MIN_SAMPLES}")
     if quantity is not None:
-        _check_magnitude(np.concatenate(segments[:1])[:100_000], columns, source, quantity)
+        _check_magnitude(segments[0][:100_000], columns, source, quantity)
     return segments, warnings
 
 
@@ -167,113 +168,28 @@ def _check_magnitude(y: np.ndarray, columns, source: str, quantity: str) -> None
 
 # -- phase and kernels --------------------------------------------------------------------
 
-def phase(y: np.ndarray, rate: float) -> np.ndarray:
-    """Phase (C, N+1) from rate samples (N, C): x_0 = 0, x_k = dt cumsum(y - mean) (allantools)."""
+def phase(y: np.ndarray, rate: float, compiled: bool | None = None) -> np.ndarray:
+    """Phase (C, N+1) from rate samples (N, C): x_0 = 0, x_k = dt cumsum(y - mean) (allantools).
+
+    ``compiled``: integrate with the numba kernel in one pass (default: for records above
+    :data:`COMPILED_WORK` / 20 samples; numpy otherwise, one (N,) temporary per channel).
+    """
     y = np.asarray(y, float)
+    if y.ndim == 1:
+        y = y[:, None]
     x = np.empty((y.shape[1], y.shape[0] + 1))
     x[:, 0] = 0.0
-    _integrate(y, column_sums(y) / len(y), 1.0 / float(rate), np.zeros(y.shape[1]), x[:, 1:])
+    if compiled if compiled is not None else y.size > COMPILED_WORK / 20:
+        from workbench.analysis import allan_kernels as kern
+
+        kern.integrate(y, kern.column_sums(y) / len(y), 1.0 / float(rate), np.zeros(y.shape[1]), x[:, 1:])
+        return x
+    dt = 1.0 / float(rate)
+    for c in range(y.shape[1]):
+        col = y[:, c] - np.mean(y[:, c])
+        np.cumsum(col, out=x[c, 1:])
+        x[c, 1:] *= dt
     return x
-
-
-@numba.njit(cache=True, nogil=True)
-def column_sums(y):  # pragma: no cover - compiled
-    """Column sums (C,) of y (N, C), accumulated in blocks (error ~ eps sqrt(N / block))."""
-    total = np.zeros(y.shape[1])
-    for b0 in range(0, y.shape[0], _BLOCK):
-        part = np.zeros(y.shape[1])
-        for k in range(b0, min(b0 + _BLOCK, y.shape[0])):
-            for c in range(y.shape[1]):
-                part[c] += y[k, c]
-        total += part
-    return total
-
-
-@numba.njit(cache=True, nogil=True)
-def _integrate(y, mean, dt, run, x):  # pragma: no cover - compiled
-    """x[c, k] = dt * (run[c] + sum_{i<=k} (y[i, c] - mean[c])), in one pass.
-
-    The running sum is kept unscaled and multiplied by dt per point, the order of operations
-    of ``cumsum(y - mean) * dt`` (allantools). ``run`` (C,) carries the unscaled running sum
-    from the previous chunk of a record (zeros for the first) and is updated in place.
-    """
-    n_ch = y.shape[1]
-    for k in range(y.shape[0]):
-        for c in range(n_ch):
-            run[c] += y[k, c] - mean[c]
-            x[c, k] = run[c] * dt
-
-
-@numba.njit(cache=True, nogil=True, fastmath=True, error_model="numpy", boundscheck=False)
-def _block_sum(x0, x1, x2, x3, order):  # pragma: no cover - compiled
-    """Sum of squared order-th differences of aligned windows x0..x3 (x[i], x[i+m], ...; x3 unused for order 2)."""
-    acc = 0.0
-    if order == 2:
-        for i in range(x0.shape[0]):
-            d = x2[i] - 2.0 * x1[i] + x0[i]
-            acc += d * d
-    else:
-        for i in range(x0.shape[0]):
-            d = x3[i] - 3.0 * x2[i] + 3.0 * x1[i] - x0[i]
-            acc += d * d
-    return acc
-
-
-@numba.njit(cache=True, nogil=True, error_model="numpy", boundscheck=False)
-def _diff_sums(x, lags, order, i0, i1, out):  # pragma: no cover - compiled
-    """out[j, c] += sum over i in [i0[j], i1[j]) of (order-th difference of x[c] at lag lags[j], at i)^2.
-
-    Channel by channel, the index range is walked in blocks of ``_BLOCK`` and every lag is
-    summed per block, so a phase window loaded for one lag (x[i+m] of lag m is x[i+2m] of
-    lag m/2) is reused from cache by the others.
-    """
-    lo = i0.min()
-    hi = i1.max()
-    for c in range(x.shape[0]):
-        xc = x[c]
-        for b0 in range(lo, hi, _BLOCK):
-            b1 = min(b0 + _BLOCK, hi)
-            for j in range(lags.shape[0]):
-                m = lags[j]
-                s0 = max(b0, i0[j])
-                s1 = min(b1, i1[j])
-                if s1 > s0:
-                    out[j, c] += _block_sum(xc[s0:s1], xc[s0 + m:s1 + m], xc[s0 + 2 * m:s1 + 2 * m],
-                                            xc[s0 + order * m:s1 + order * m], order)
-
-
-@numba.njit(cache=True, nogil=True)
-def _mdev_sums(x, lags, j0, j1, v0, run, out):  # pragma: no cover - compiled
-    """Modified-Allan sums by allantools' recursion (same order of operations).
-
-    For lag m the inner sum at j is v_j = v0 + run_j, run_j = run_{j-1} + (x[j+3m-1] - 3x[j+2m-1]
-    + 3x[j+m-1] - x[j-1]); j runs over [j0[k], j1[k]) (j = 0 is the first term, v0 its value).
-    ``v0``, ``run`` (K, C) hold the state; ``out`` (K, C) accumulates v_j^2 in blocks.
-    """
-    n_ch = x.shape[0]
-    for k in range(lags.shape[0]):
-        m = lags[k]
-        for c in range(n_ch):
-            xc = x[c]
-            r = run[k, c]
-            base = v0[k, c]
-            acc = 0.0
-            block = 0.0
-            cnt = 0
-            for j in range(j0[k], j1[k]):
-                if j == 0:
-                    v = base
-                else:
-                    r += xc[j + 3 * m - 1] - 3.0 * xc[j + 2 * m - 1] + 3.0 * xc[j + m - 1] - xc[j - 1]
-                    v = base + r
-                block += v * v
-                cnt += 1
-                if cnt == _BLOCK:
-                    acc += block
-                    block = 0.0
-                    cnt = 0
-            run[k, c] = r
-            out[k, c] += acc + block
 
 
 def _mdev_start(x: np.ndarray, lags: np.ndarray) -> np.ndarray:
@@ -282,18 +198,49 @@ def _mdev_start(x: np.ndarray, lags: np.ndarray) -> np.ndarray:
         len(lags), x.shape[0])
 
 
-def squared_sums(x: np.ndarray, lags: np.ndarray, kind: str) -> np.ndarray:
-    """Sums of squared differences (K, C) of the whole phase ``x`` (C, L) for ``kind``."""
+def squared_sums(x: np.ndarray, lags: np.ndarray, kind: str, compiled: bool | None = None) -> np.ndarray:
+    """Sums of squared differences (K, C) of the whole phase ``x`` (C, L) for ``kind``.
+
+    ``compiled``: use the numba kernels (default: MDEV always, the others when the work, lags x
+    channels x points, exceeds :data:`COMPILED_WORK`).
+    """
     lags = np.asarray(lags, np.int64)
     out = np.zeros((len(lags), x.shape[0]))
     if len(lags) == 0:
         return out
-    n = _n_terms(kind, x.shape[1], lags)
+    n = np.maximum(_n_terms(kind, x.shape[1], lags), 0).astype(np.int64)
+    if compiled is None:
+        compiled = kind == "mdev" or float(n.sum()) * x.shape[0] > COMPILED_WORK
+    if not compiled:
+        return _numpy_sums(x, lags, ORDER[kind], n)
+    from workbench.analysis import allan_kernels as kern
+
     if kind == "mdev":
         v0 = _mdev_start(x, lags)
-        _mdev_sums(x, lags, np.zeros_like(lags), n.astype(np.int64), v0, np.zeros_like(v0), out)
+        kern.mdev_sums(x, lags, np.zeros_like(lags), n, v0, np.zeros_like(v0), out)
     else:
-        _diff_sums(x, lags, ORDER[kind], np.zeros_like(lags), np.maximum(n, 0).astype(np.int64), out)
+        kern.diff_sums(x, lags, ORDER[kind], np.zeros_like(lags), n, out)
+    return out
+
+
+def _numpy_sums(x: np.ndarray, lags: np.ndarray, order: int, n: np.ndarray) -> np.ndarray:
+    """:func:`squared_sums` of OADEV (order 2) / OHDEV (order 3) with numpy, one (C, L) buffer reused."""
+    out = np.zeros((len(lags), x.shape[0]))
+    buf = np.empty((x.shape[0], int(n.max()) if len(n) else 0))
+    for k, (m, nk) in enumerate(zip(lags.tolist(), n.tolist())):
+        if nk <= 0:
+            continue
+        d = buf[:, :nk]
+        if order == 2:  # x[i+2m] - 2 x[i+m] + x[i]
+            np.subtract(x[:, 2 * m:2 * m + nk], x[:, m:m + nk], out=d)
+            d -= x[:, m:m + nk]
+            d += x[:, :nk]
+        else:  # x[i+3m] - 3 x[i+2m] + 3 x[i+m] - x[i]
+            np.subtract(x[:, 2 * m:2 * m + nk], x[:, m:m + nk], out=d)
+            d *= -3.0
+            d += x[:, 3 * m:3 * m + nk]
+            d -= x[:, :nk]
+        out[k] = np.einsum("ij,ij->i", d, d)
     return out
 
 
@@ -325,16 +272,29 @@ def deviation(y: np.ndarray, rate: float, kind: str = "oadev", taus: str | np.nd
     y = np.asarray(y, float)
     cols = tuple(columns) if columns is not None else tuple(f"ch{i}" for i in range(1 if y.ndim == 1 else y.shape[1]))
     segments, _ = prepare_rate_data(y, cols, source, gap_policy, quantity)
-    longest = max(len(s) for s in segments)
-    m = averaging_factors(longest + 1, taus, rate, kind)
+    return segment_deviation(segments, rate, kind, taus, cols, source)[0]
+
+
+def segment_deviation(segments: list[np.ndarray], rate: float, kind: str, taus: str | np.ndarray,
+                      columns: tuple[str, ...], source: str = "data") -> tuple[DeviationCurve, np.ndarray]:
+    """:func:`deviation` of checked gap-free segments (:func:`prepare_rate_data`), and the phase
+    (C, L) of the longest one (for the noise identification), each phase computed once."""
+    longest = max(segments, key=len)
+    m = averaging_factors(len(longest) + 1, taus, rate, kind)
     if len(m) == 0:
-        raise AnalysisError(f"{source}: no averaging time fits {longest} samples for {kind}")
-    sums = np.zeros((len(m), len(cols)))
+        raise AnalysisError(f"{source}: no averaging time fits {len(longest)} samples for {kind}")
+    sums = np.zeros((len(m), len(columns)))
     n = np.zeros(len(m), np.int64)
+    x_longest = None
     for seg in segments:
         n_seg = _n_terms(kind, len(seg) + 1, m)
         use = n_seg > 0
-        sums[use] += squared_sums(phase(seg, rate), m[use], kind)
+        x = phase(seg, rate)
+        sums[use] += squared_sums(x, m[use], kind)
         n[use] += n_seg[use]
-    return DeviationCurve(kind, m / rate, m, normalise(kind, sums, n, m, rate), n, float(rate),
-                          sum(len(s) for s in segments), cols)
+        if seg is longest:
+            x_longest = x
+        del x
+    curve = DeviationCurve(kind, m / rate, m, normalise(kind, sums, n, m, rate), n, float(rate),
+                           sum(len(s) for s in segments), columns)
+    return curve, x_longest

@@ -26,23 +26,18 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
+from math import comb
 
 import numpy as np
-from scipy.special import comb, gammaincinv
 
 from workbench.analysis.allan import DeviationCurve
+from workbench.analysis.chi2 import chi2_ppf
 
 J_MAX = 2000  # terms of the Greenhall sum evaluated directly (the paper uses 100)
 MIN_POINTS_ID = 100  # decimated phase points needed for the lag-1 noise identification
 MAX_POINTS_ID = 1 << 16  # decimated points used (r1 then has a standard error ~0.004)
 _D = {"oadev": 2, "mdev": 2, "ohdev": 3}
 _ALPHA_RANGE = {"oadev": (-2, 2), "mdev": (-2, 2), "ohdev": (-4, 2)}
-
-
-def chi2_ppf(q: float | np.ndarray, dof: float | np.ndarray) -> np.ndarray:
-    """Quantile of the chi-squared law with ``dof`` degrees of freedom (scipy.stats.chi2.ppf,
-    through the inverse regularised gamma function: scipy.stats costs ~1 s of start-up)."""
-    return 2.0 * gammaincinv(np.asarray(dof, float) / 2.0, q)
 
 
 @dataclass(frozen=True)

@@ -37,10 +37,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.optimize import nnls
 
 from workbench.allan_model import FLICKER_AVAR, avar_basis
 from workbench.analysis.allan_ci import DeviationCI, chi2_ppf
+from workbench.analysis.small_solvers import nnls, root_bracket
 
 TERMS = ("quantization", "white", "bias_instability", "rrw", "rate_ramp")
 FLICKER = FLICKER_AVAR  # AVAR per B^2; ADEV floor 0.664 B (workbench.allan_model)
@@ -151,8 +151,6 @@ def profile_interval(a: np.ndarray, avar: np.ndarray, edf: np.ndarray, k: int, f
     where the search for the upper limit starts (it grows by 4 until the profile exceeds the
     threshold).
     """
-    from scipy.optimize import brentq
-
     limit = d_min + chi2_ppf(level, 1)
     t_hat = float(full[k])
 
@@ -164,12 +162,12 @@ def profile_interval(a: np.ndarray, avar: np.ndarray, edf: np.ndarray, k: int, f
         if excess(top) > 0:
             break
         top *= 4.0
-    tol = 1e-7 * top  # brentq's default absolute tolerance (2e-12) is larger than a squared term
+    tol = 1e-7 * top  # absolute tolerance scaled to the term (a fixed 2e-12 is larger than a squared term)
     lo = 0.0
     if t_hat > 0 and excess(0.0) > 0:
-        lo = brentq(excess, 0.0, t_hat, xtol=tol, rtol=1e-5) if excess(t_hat) < 0 else t_hat
+        lo = root_bracket(excess, 0.0, t_hat, xtol=tol, rtol=1e-5) if excess(t_hat) < 0 else t_hat
     base = t_hat if excess(t_hat) < 0 else 0.0
-    hi = brentq(excess, base, top, xtol=tol, rtol=1e-5) if excess(base) < 0 else top
+    hi = root_bracket(excess, base, top, xtol=tol, rtol=1e-5) if excess(base) < 0 else top
     return lo, hi
 
 
@@ -308,8 +306,8 @@ def analyze_record(y: np.ndarray, rate: float, columns: tuple[str, ...] | list[s
     from workbench.analysis.allan_ci import confidence
 
     segments, warnings = allan.prepare_rate_data(y, tuple(columns), source, gap_policy, quantity)
-    curve = allan.deviation(y, rate, "oadev", taus, columns, gap_policy, quantity, source)
-    ci = confidence(curve, allan.phase(max(segments, key=len), rate))
+    curve, x = allan.segment_deviation(segments, rate, "oadev", taus, tuple(columns), source)
+    ci = confidence(curve, x)
     return AllanAnalysis(ci, fit_terms(ci), quantity, tuple(warnings))
 
 

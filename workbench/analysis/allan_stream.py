@@ -16,7 +16,7 @@ sequential passes, memory bounded by the batch, block and window sizes (not the 
    are summed from one contiguous read of the block plus its tail, larger lags from
    reads of ``block`` points at offsets m, 2m (, 3m) (each offset read once per block: the 2m
    of one octave lag is the m of the next; offset 0 is the start of the shared read), summed
-   by the same compiled kernel as in memory (:func:`workbench.analysis.allan._block_sum`).
+   by the same compiled kernel as in memory (:func:`workbench.analysis.allan_kernels.block_sum`).
    Read buffers are reused, so the sweep allocates nothing per block.
 
 The results equal the in-memory :func:`workbench.analysis.allan.deviation` (the sums are only
@@ -37,6 +37,7 @@ import numpy as np
 import pyarrow.parquet as pq
 
 from workbench.analysis import allan
+from workbench.analysis import allan_kernels as kern
 from workbench.analysis.allan import DeviationCurve
 from workbench.errors import AnalysisError
 
@@ -78,7 +79,7 @@ def _scan(batches: Batches, columns: list[str], source: str, quantity: str | Non
                                 "(streaming needs a gap-free record; load it in memory for a gap policy)")
         if quantity is not None and n < _HEAD:
             head.append(np.array(y[:_HEAD - n]))
-        sums += allan.column_sums(np.ascontiguousarray(y))
+        sums += kern.column_sums(np.ascontiguousarray(y))
         n += len(y)
     if quantity is not None and head:
         allan._check_magnitude(np.concatenate(head), columns, source, quantity)
@@ -175,7 +176,7 @@ def _write_phase(batches: Batches, rate: float, mean: np.ndarray, files: list[Pa
             if not len(y):
                 continue
             x = np.empty((n_ch, len(y)))
-            allan._integrate(np.ascontiguousarray(y), mean, 1.0 / float(rate), run, x)
+            kern.integrate(np.ascontiguousarray(y), mean, 1.0 / float(rate), run, x)
             for fh, xc in zip(handles, x):
                 xc.tofile(fh)
             g1 = g0 + len(y)
@@ -201,7 +202,7 @@ def _sweep(fh, m: np.ndarray, counts: np.ndarray, order: int, n_phase: int, bloc
         x = _read(fh, start, min(block + (int(order * ms.max()) if len(ms) else 0), n_phase - start), pool)
         if len(ms):
             part = np.zeros((len(ms), 1))
-            allan._diff_sums(x[None, :], ms, order, np.zeros_like(ms), np.clip(cs - start, 0, block).astype(np.int64),
+            kern.diff_sums(x[None, :], ms, order, np.zeros_like(ms), np.clip(cs - start, 0, block).astype(np.int64),
                              part)
             out[small] += part[:, 0]
         # offset -> x[start + offset:][:block]; the 2m of one octave lag is the m of the next
@@ -216,7 +217,7 @@ def _sweep(fh, m: np.ndarray, counts: np.ndarray, order: int, n_phase: int, bloc
             w = [reads[p * int(m[k])] for p in range(order + 1)] + [reads[0]] * (3 - order)
             for s0 in range(0, count, _SUB):
                 s1 = min(s0 + _SUB, count)
-                out[k] += allan._block_sum(w[0][s0:s1], w[1][s0:s1], w[2][s0:s1], w[3][s0:s1], order)
+                out[k] += kern.block_sum(w[0][s0:s1], w[1][s0:s1], w[2][s0:s1], w[3][s0:s1], order)
             for off in [o for o in reads if 0 < o <= m[k]]:
                 pool.append(reads.pop(off).base)
         pool.extend(r.base for o, r in reads.items() if o > 0)

@@ -4,6 +4,11 @@ Input: a session folder (its longest static hold, rate from the manifest), or a 
 file of rate columns in SI (rad/s, m/s^2) with a time column ``t``/``time`` (s) or none when
 ``--rate`` is given. Output: a table of the IEEE 952 terms in lab units, ``--out curves.csv``
 (one row per column and tau: deviation, 95 % interval, EDF, noise exponent) and ``--plot``.
+
+A Parquet file is read column by column with pyarrow (no DataFrame); one of
+:data:`STREAM_SAMPLES` values or more (or over a quarter of the RAM) is streamed in bounded
+memory (:mod:`workbench.analysis.allan_stream`). Only what the command needs is imported:
+no pandas, scipy or numba for a record that fits the numpy kernels.
 """
 
 from __future__ import annotations
@@ -25,12 +30,13 @@ if TYPE_CHECKING:  # numpy, pandas, sessions and the fit (scipy.stats, cvxpy) lo
 
 TIME_COLUMNS = ("t", "time")
 TEXT_SUFFIXES = (".txt", ".dat")
+STREAM_SAMPLES = 1e8  # values (rows x rate columns) from which a Parquet file is streamed
 RATE_TOLERANCE = 0.01  # relative spread of sample intervals accepted as a constant rate
 
 
 def quantity_of(columns: list[str]) -> str | None:
     """``"gyro"`` for gx/gy/gz, ``"accel"`` for ax/ay/az, else None (generic SI data)."""
-    from workbench.session import ACCEL, GYRO
+    from workbench.values import ACCEL, GYRO
 
     if set(columns) <= set(GYRO):
         return "gyro"
@@ -67,11 +73,11 @@ def load_record(path: Path, columns: list[str] | None, rate: float | None) -> tu
     Gaps in a time column become NaN rows, so the gap policy decides what happens to them.
     """
     import numpy as np
-    import pandas as pd
-
-    from workbench.session import GYRO, load_session, read_samples
 
     if path.is_dir():
+        from workbench.session import load_session
+        from workbench.values import GYRO
+
         session = load_session(path)
         static = session.steps_of_kind("static")
         if not static:
@@ -86,17 +92,85 @@ def load_record(path: Path, columns: list[str] | None, rate: float | None) -> tu
         if rate is None:
             raise AnalysisError(f"{path}: a text file of numbers has no time column: give the sample rate with --rate HZ")
         return _text_column(path), float(rate), columns or ["data"], str(path)
-    df = read_samples(path)
-    time_col = next((c for c in TIME_COLUMNS if c in df.columns), None)
-    cols = columns or [c for c in df.columns if c not in (*TIME_COLUMNS, "step")]
-    y = _columns(df, cols, path)
+    table = _parquet_columns(path, columns, rate is None) if path.suffix.lower() == ".parquet" else None
+    if table is None:
+        from workbench.session import read_samples
+
+        df = read_samples(path)
+        time_col = next((c for c in TIME_COLUMNS if c in df.columns), None)
+        cols = columns or [c for c in df.columns if c not in (*TIME_COLUMNS, "step")]
+        y = _columns(df, cols, path)
+        t = df[time_col].to_numpy(float) if time_col is not None else None
+    else:
+        y, t, cols = table
     if rate is None:
-        if time_col is None:
+        if t is None:
             raise AnalysisError(f"{path}: no time column (t or time): give the sample rate with --rate HZ")
-        rate, gaps = rate_from_time(df[time_col].to_numpy(float), str(path))
+        rate, gaps = rate_from_time(t, str(path))
         if len(gaps):
             y = np.insert(y, gaps + 1, np.nan, axis=0)
     return y, float(rate), cols, str(path)
+
+
+def _parquet_columns(path: Path, columns: list[str] | None,
+                     want_time: bool) -> tuple[np.ndarray, np.ndarray | None, list[str]] | None:
+    """Rate columns (N, C) float64, the time column (or None) and the column names of a Parquet
+    file, read column by column with pyarrow (no DataFrame, no copy beyond the (N, C) array).
+
+    None when a chosen column is not numeric: the DataFrame path then names the offending cell.
+    """
+    import numpy as np
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    try:
+        pf = pq.ParquetFile(path)
+        schema = pf.schema_arrow
+    except Exception as exc:  # pyarrow raises many types for unreadable files
+        raise AnalysisError(f"{path}: cannot read samples ({type(exc).__name__}: {str(exc)[:120]})") from None
+    names = list(schema.names)
+    time_col = next((c for c in TIME_COLUMNS if c in names), None)
+    cols = columns or [c for c in names if c not in (*TIME_COLUMNS, "step")]
+    missing = [c for c in cols if c not in names]
+    if missing:
+        raise AnalysisError(f"{path}: no column(s) {', '.join(missing)} (has {', '.join(names)})")
+
+    def numeric(c: str) -> bool:
+        kind = schema.field(c).type
+        return pa.types.is_floating(kind) or pa.types.is_integer(kind)
+
+    if not all(numeric(c) for c in cols):
+        return None
+    n = pf.metadata.num_rows
+    y = np.empty((n, len(cols)))
+    t = np.empty(n) if want_time and time_col is not None else None
+    try:
+        for j, c in enumerate(cols):
+            _fill(pf.read(columns=[c], use_threads=False).column(0), y[:, j])
+        if t is not None:
+            _fill(pf.read(columns=[time_col], use_threads=False).column(0), t)
+    except Exception as exc:
+        raise AnalysisError(f"{path}: cannot read samples ({type(exc).__name__}: {str(exc)[:120]})") from None
+    return y, t, cols
+
+
+def _fill(column, out: np.ndarray) -> None:
+    """Copy a numeric pyarrow ChunkedArray into ``out`` (n,) float64, nulls as NaN.
+
+    From the chunks' data buffers: pyarrow's own ``to_numpy`` imports pandas (~0.5 s).
+    """
+    import numpy as np
+    import pyarrow as pa
+
+    start = 0
+    for chunk in column.chunks:
+        if chunk.null_count or chunk.type != pa.float64():
+            import pyarrow.compute as pc  # ~0.2 s: only for integer columns or nulls
+
+            chunk = pc.fill_null(chunk.cast(pa.float64()), float("nan"))
+        values = np.frombuffer(chunk.buffers()[1], dtype=np.float64)[chunk.offset:chunk.offset + len(chunk)]
+        out[start:start + len(chunk)] = values
+        start += len(chunk)
 
 
 def _text_column(path: Path) -> np.ndarray:
@@ -131,16 +205,32 @@ def _columns(df: pd.DataFrame, cols: list[str], path: Path) -> np.ndarray:
     return df[cols].to_numpy(float)
 
 
-def curves_frame(an: AllanAnalysis) -> pd.DataFrame:
-    """One row per column and tau: tau_s, adev and its 95 % interval (input SI unit), edf, alpha."""
-    import pandas as pd
+CURVE_COLUMNS = ("column", "tau_s", "m", "n", "adev", "adev_lo95", "adev_hi95", "edf", "alpha")
 
+
+def curve_rows(an: AllanAnalysis) -> list[tuple]:
+    """One row per column and tau (:data:`CURVE_COLUMNS`): tau_s, adev and its 95 % interval
+    (input SI unit), edf, alpha."""
     c = an.ci.curve
-    rows = [{"column": col, "tau_s": c.tau[k], "m": int(c.m[k]), "n": int(c.n[k]), "adev": c.dev[k, j],
-             "adev_lo95": an.ci.lo[k, j], "adev_hi95": an.ci.hi[k, j], "edf": an.ci.edf[k, j],
-             "alpha": int(an.ci.alpha[k, j])}
+    return [(col, float(c.tau[k]), int(c.m[k]), int(c.n[k]), float(c.dev[k, j]), float(an.ci.lo[k, j]),
+             float(an.ci.hi[k, j]), float(an.ci.edf[k, j]), int(an.ci.alpha[k, j]))
             for j, col in enumerate(c.columns) for k in range(len(c.tau))]
-    return pd.DataFrame(rows)
+
+
+def write_csv(path: Path, header: tuple[str, ...] | list[str], rows: list[tuple]) -> None:
+    """A CSV file of ``rows`` (floats as Python's shortest round-trip repr, as pandas writes them),
+    written atomically."""
+    import csv
+    import io
+
+    from workbench.files import atomic_write_text
+
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(header)
+    writer.writerows(rows)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(path, buf.getvalue())
 
 
 def _print_terms(an: AllanAnalysis) -> None:
@@ -178,7 +268,8 @@ def register(app: typer.Typer) -> None:
         out_csv: Path = typer.Option(None, "--out", help="Write the curves (one row per column and tau) to this CSV."),
         plot: Path = typer.Option(None, "--plot", help="Write the ADEV figure (PNG) here."),
         gap_policy: str = typer.Option("error", "--gap-policy", help="NaN / time gaps: error | longest | split"),
-        stream: bool = typer.Option(False, "--stream", help="Parquet too large for memory: stream it (no gap policy; "
+        stream: bool = typer.Option(False, "--stream", help="Stream the Parquet file (automatic from "
+                                                            f"{STREAM_SAMPLES:.0e} samples or a quarter of the RAM; no gap policy; "
                                                             "noise exponents from the curve's slopes)."),
         stat: str = typer.Option(None, "--stat", help="One statistic of the family instead of the IEEE 952 fit: adev "
                                                       "oadev mdev tdev hdev ohdev totdev mtotdev ttotdev htotdev theo1 "
@@ -193,7 +284,7 @@ def register(app: typer.Typer) -> None:
         if stat is not None:
             _family(source, cols, rate, stat, data_type, taus, confidence, out_csv)
             return
-        if stream:
+        if stream or _too_large(source, cols):
             an = _streamed(source, cols, rate, taus)
         else:
             from workbench.analysis.allan_fit import analyze_record
@@ -204,8 +295,7 @@ def register(app: typer.Typer) -> None:
             out.print(styled("warning:", "yellow", f" {w}"))
         _print_terms(an)
         if out_csv is not None:
-            out_csv.parent.mkdir(parents=True, exist_ok=True)
-            curves_frame(an).to_csv(out_csv, index=False)
+            write_csv(out_csv, CURVE_COLUMNS, curve_rows(an))
             out.print(f"curves: {out_csv}")
         if plot is not None:
             import matplotlib.pyplot as plt
@@ -219,13 +309,40 @@ def register(app: typer.Typer) -> None:
             out.print(f"figure: {plot}")
 
 
+def _too_large(source: Path, cols: list[str] | None) -> bool:
+    """A Parquet file whose rate columns hold at least :data:`STREAM_SAMPLES` values, or more than a
+    quarter of the physical memory as float64: streamed (faster from 1e8 samples, bounded memory)."""
+    if source.suffix.lower() != ".parquet" or not source.is_file():
+        return False
+    import os
+
+    import pyarrow.parquet as pq
+
+    try:
+        pf = pq.ParquetFile(source)
+    except Exception:  # unreadable: the in-memory path names the problem
+        return False
+    n_cols = len(cols) if cols else sum(1 for c in pf.schema_arrow.names if c not in (*TIME_COLUMNS, "step"))
+    values = pf.metadata.num_rows * n_cols
+    try:
+        ram = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        ram = 1 << 62
+    return values >= STREAM_SAMPLES or 8 * values > ram / 4
+
+
 def _streamed(source: Path, cols: list[str] | None, rate: float | None, taus: str) -> AllanAnalysis:
     """The full analysis (deviations, intervals with noise identification, term fit) streamed."""
     from workbench.analysis.allan_fit import analyze_stream
     from workbench.analysis.allan_stream import parquet_batches
 
-    if source.suffix != ".parquet" or cols is None or rate is None:
-        raise AnalysisError(f"{source}: --stream needs a .parquet file, --columns and --rate")
+    if source.suffix.lower() != ".parquet" or rate is None:
+        raise AnalysisError(f"{source}: streaming (--stream, or a record of {STREAM_SAMPLES:.0e} samples or more) "
+                            "needs a .parquet file and --rate")
+    if cols is None:
+        import pyarrow.parquet as pq
+
+        cols = [c for c in pq.ParquetFile(source).schema_arrow.names if c not in (*TIME_COLUMNS, "step")]
     return analyze_stream(parquet_batches(source, cols), rate, cols, quantity_of(cols), taus, str(source))
 
 
@@ -239,14 +356,17 @@ def parse_taus(taus: str) -> str | list[float]:
         raise AnalysisError(f"--taus {taus!r}: expected octave, decade, all or taus in s (T1,T2,...)") from None
 
 
-def family_frame(results: list) -> pd.DataFrame:
-    """One row per column and tau: ``column, tau, dev, dev_lo, dev_hi, n, alpha, edf`` (SI of the input)."""
-    import pandas as pd
+FAMILY_COLUMNS = ("column", "tau", "dev", "dev_lo", "dev_hi", "n", "alpha", "edf")
 
-    rows = [{"column": col, "tau": c.curve.tau[k], "dev": c.curve.dev[k], "dev_lo": c.lo[k], "dev_hi": c.hi[k],
-             "n": int(c.curve.n[k]), "alpha": c.alpha[k], "edf": c.edf[k]}
+
+def family_rows(results: list) -> list[tuple]:
+    """One row per column and tau (:data:`FAMILY_COLUMNS`, SI of the input; NaN written as empty)."""
+    def num(v: float) -> float | str:
+        return "" if v != v else float(v)
+
+    return [(col, float(c.curve.tau[k]), float(c.curve.dev[k]), num(c.lo[k]), num(c.hi[k]), int(c.curve.n[k]),
+             num(c.alpha[k]), num(c.edf[k]))
             for col, c in results for k in range(len(c.curve.tau))]
-    return pd.DataFrame(rows, columns=["column", "tau", "dev", "dev_lo", "dev_hi", "n", "alpha", "edf"])
 
 
 def _family(source: Path, cols: list[str] | None, rate: float | None, stat: str, data_type: str, taus: str,
@@ -280,6 +400,5 @@ def _family(source: Path, cols: list[str] | None, rate: float | None, stat: str,
                       "" if c.edf[k] != c.edf[k] else f"{c.edf[k]:.4g}")
     out.print(t)
     if out_csv is not None:
-        out_csv.parent.mkdir(parents=True, exist_ok=True)
-        family_frame(results).to_csv(out_csv, index=False)
+        write_csv(out_csv, FAMILY_COLUMNS, family_rows(results))
         out.print(f"curves: {out_csv}")

@@ -1,0 +1,41 @@
+"""The numpy-only NNLS and bracketed root finder against scipy.optimize (the independent reference)."""
+
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+from scipy.optimize import nnls as scipy_nnls
+
+from workbench.analysis.small_solvers import nnls, root_bracket
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_nnls_matches_scipy(seed):
+    rng = np.random.default_rng(seed)
+    m, n = rng.integers(5, 40), rng.integers(1, 8)
+    a = rng.standard_normal((m, n)) * np.logspace(0, rng.uniform(0, 6), n)  # columns of very different scale
+    b = rng.standard_normal(m) * 3.0
+    x, r = nnls(a, b)
+    x_ref, r_ref = scipy_nnls(a, b)
+    assert np.all(x >= 0)
+    # the solution is unique for full-rank a: equal to rounding of the passive-set solve
+    assert r == pytest.approx(r_ref, rel=1e-9, abs=1e-12)
+    assert np.allclose(x, x_ref, rtol=1e-7, atol=1e-10 * np.abs(x_ref).max(initial=1.0))
+
+
+def test_nnls_all_negative_gives_zero():
+    a = np.eye(3)
+    x, r = nnls(a, -np.ones(3))
+    assert np.all(x == 0) and r == pytest.approx(np.sqrt(3))
+
+
+@pytest.mark.parametrize("func,lo,hi", [(lambda t: t ** 3 - 2.0, 0.0, 4.0), (np.cos, 0.0, 3.0),
+                                         (lambda t: np.exp(t) - 1e6, 0.0, 40.0),
+                                         (lambda t: 1e-20 * (t - 3e-9), 0.0, 1e-8)])
+def test_root_matches_brentq(func, lo, hi):
+    ref = brentq(func, lo, hi, xtol=1e-14 * hi, rtol=1e-12)
+    assert root_bracket(func, lo, hi, xtol=1e-14 * hi, rtol=1e-12) == pytest.approx(ref, rel=1e-10)
+
+
+def test_root_needs_a_bracket():
+    with pytest.raises(ValueError):
+        root_bracket(lambda t: t * t + 1.0, -1.0, 1.0)
