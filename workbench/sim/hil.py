@@ -21,19 +21,19 @@ Faults for tests (:meth:`HilLab.inject`): ``silent`` (no replies), ``garbage`` (
 replies), ``refuse`` (setpoints refused), ``drop`` (the link is closed, and the next
 connection too), ``interlock`` (the table reports an interlock); for the stream ``corrupt``,
 ``jump`` (the counter skips) and ``drop``.
+
+The servers themselves (line server, Modbus server, ports) are :mod:`workbench.sim.hil_servers`;
+this module is the lab behind them (motion engine, command sets, stream frames).
 """
 
 from __future__ import annotations
 
-import asyncio
 import logging
-import re
 import socket
-import socketserver
 import struct
 import threading
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import replace
 
 import numpy as np
@@ -43,108 +43,12 @@ from workbench.drivers.imu_stream import SIGNALS, FrameFormat
 from workbench.drivers.turntable_visa import DEFAULT_COMMANDS, DEFAULT_POSITIONING_RATE
 from workbench.errors import RigError
 from workbench.rigconfig import RigConfig
+from workbench.sim.hil_servers import (HOST, LineServer, ModbusChamberServer, free_port,  # noqa: F401 (re-exported)
+                                       port_of, template_regex)
 from workbench.sim.rig import SimRig, move_profile, ramp_profile
 
-HOST = "127.0.0.1"
 log = logging.getLogger("workbench.hil")
 _TICK_S = 0.01  # wall-clock period of the motion engine
-
-
-def free_port() -> int:
-    """A free TCP port on 127.0.0.1."""
-    with socket.socket() as s:
-        s.bind((HOST, 0))
-        return s.getsockname()[1]
-
-
-def _template_regex(template: str) -> re.Pattern:
-    """A regex matching what ``template.format(...)`` produces, numbers captured by field name."""
-    out, pos = "", 0
-    for m in re.finditer(r"\{(\w+)(?::[^}]*)?\}", template):
-        out += re.escape(template[pos:m.start()]) + rf"(?P<{m.group(1)}>[-+0-9.eE,]+)"
-        pos = m.end()
-    return re.compile("^" + out + re.escape(template[pos:]) + "$")
-
-
-class _Server(socketserver.ThreadingTCPServer):
-    daemon_threads = True
-    allow_reuse_address = True
-    block_on_close = False
-
-
-class LineServer:
-    """A TCP line server on 127.0.0.1 calling ``respond(line) -> reply | None`` with fault injection."""
-
-    def __init__(self, device: str, port: int, respond: Callable[[str], str | None], faults: dict,
-                 read_termination: str = "\n", write_termination: str = "\n") -> None:
-        self.device, self.respond, self.faults = device, respond, faults
-        self.rterm, self.wterm = read_termination, write_termination
-        self.refuse_next = 0
-        self._conns: set[socket.socket] = set()
-        lab = self
-
-        class Handler(socketserver.BaseRequestHandler):
-            def handle(self) -> None:
-                lab._serve(self.request)
-
-        try:
-            self.server = _Server((HOST, port), Handler)
-        except OSError as exc:
-            raise RigError(f"hil: {device} port {port}: {exc}") from None
-        self.port = self.server.server_address[1]
-        self._thread = threading.Thread(target=self.server.serve_forever, kwargs={"poll_interval": 0.05},
-                                        name=f"hil-{device}", daemon=True)
-
-    def start(self) -> None:
-        self._thread.start()
-
-    def stop(self) -> None:
-        self.server.shutdown()
-        self.server.server_close()
-        self._close_all()
-        self._thread.join(timeout=2.0)
-
-    def _close_all(self) -> None:
-        for c in list(self._conns):
-            try:
-                c.shutdown(socket.SHUT_RDWR)
-            except OSError:
-                pass
-            c.close()
-        self._conns.clear()
-
-    def _serve(self, conn: socket.socket) -> None:
-        if self.refuse_next > 0:
-            self.refuse_next -= 1
-            conn.close()
-            return
-        self._conns.add(conn)
-        buf = b""
-        term = self.rterm.encode()
-        try:
-            while True:
-                data = conn.recv(4096)
-                if not data:
-                    return
-                buf += data
-                while term in buf:
-                    line, buf = buf.split(term, 1)
-                    fault = self.faults.get(self.device)
-                    if fault == "drop":
-                        self.faults[self.device] = None
-                        self.refuse_next = 1
-                        self._close_all()
-                        return
-                    reply = self.respond(line.decode("ascii", errors="replace").strip())
-                    if reply is None or fault == "silent":
-                        continue
-                    if fault == "garbage":
-                        reply = "\x15#?garbage"
-                    conn.sendall((reply + self.wterm).encode("ascii"))
-        except OSError:
-            return
-        finally:
-            self._conns.discard(conn)
 
 
 class HilLab:
@@ -199,18 +103,18 @@ class HilLab:
         """The configuration with each device's address on 127.0.0.1 (free ports if asked)."""
         opts = {k: dict(v) if isinstance(v, Mapping) else v for k, v in cfg.options.items()}
         tc, ch, st = opts["table_controller"], opts.get("chamber_controller"), opts["imu_stream"]
-        self.table_port = free_port() if free_ports else _port_of(tc["resource"], "table_controller.resource")
+        self.table_port = free_port() if free_ports else port_of(tc["resource"], "table_controller.resource")
         tc["resource"] = f"TCPIP0::{HOST}::{self.table_port}::SOCKET"
         if ch:
             if ch.get("driver") == "modbus":
                 self.chamber_port = free_port() if free_ports else int(ch.get("port", 502))
                 ch.update(host=HOST, port=self.chamber_port)
             else:
-                self.chamber_port = free_port() if free_ports else _port_of(ch["address"], "chamber_controller.address")
+                self.chamber_port = free_port() if free_ports else port_of(ch["address"], "chamber_controller.address")
                 ch["address"] = f"socket://{HOST}:{self.chamber_port}"
         addr = st["address"]
         scheme = "udp" if addr.startswith("udp://") else "socket"
-        self.stream_port = free_port() if free_ports else _port_of(addr, "imu_stream.address")
+        self.stream_port = free_port() if free_ports else port_of(addr, "imu_stream.address")
         st["address"] = f"{scheme}://{HOST}:{self.stream_port}"
         return replace(cfg, options=opts)
 
@@ -230,16 +134,16 @@ class HilLab:
         table = LineServer("table", self.table_port, self._table_reply, self.faults,
                            tc.get("write_termination", "\n"), tc.get("read_termination", "\n"))
         self._servers.append(table)
-        self._table_patterns = [(k, _template_regex(v)) for k, v in {**DEFAULT_COMMANDS, **(tc.get("commands") or {})}
+        self._table_patterns = [(k, template_regex(v)) for k, v in {**DEFAULT_COMMANDS, **(tc.get("commands") or {})}
                                 .items() if v]
         ch = opts.get("chamber_controller")
         if ch and ch.get("driver") == "modbus":
-            self._servers.append(_ModbusChamberServer(self, ch))
+            self._servers.append(ModbusChamberServer(self, ch))
         elif ch:
             from workbench.drivers.chamber_ascii import DEFAULTS
 
             self._chamber = {**DEFAULTS, **ch}
-            self._chamber_set = _template_regex(self._chamber["set"])
+            self._chamber_set = template_regex(self._chamber["set"])
             self._servers.append(LineServer("chamber", self.chamber_port, self._chamber_reply, self.faults,
                                             ch.get("write_termination", "\r\n"), ch.get("read_termination", "\r\n")))
         for s in self._servers:
@@ -462,70 +366,3 @@ class HilLab:
             value = float(m.group("setpoint_c"))
             return f"OK: {line}" if self._set_chamber(value) else "NA:DATA OUT OF RANGE"
         return "NA:COMMAND ERROR"
-
-
-class _ModbusChamberServer:
-    """A pymodbus TCP server (own thread and event loop) with the configured register map."""
-
-    def __init__(self, lab: HilLab, settings: Mapping) -> None:
-        self.lab, self.port = lab, int(settings["port"])
-        regs = settings["registers"]
-        self.reg = {k: (int(v["address"]), float(v.get("scale", 1.0))) for k, v in regs.items()}
-        self.size = max(a for a, _ in self.reg.values()) + 1
-        self.device_id = int(settings.get("device_id", 1))
-        self._loop = asyncio.new_event_loop()
-        self._thread = threading.Thread(target=self._loop.run_forever, name="hil-modbus", daemon=True)
-        self.server = None
-
-    async def _action(self, function_code, start_address, address, count, registers, values):
-        from pymodbus.constants import ExcCodes
-
-        lab = self.lab
-        if lab.faults["chamber"] == "silent":
-            await asyncio.sleep(5.0)
-        temp_addr, temp_scale = self.reg["temperature"]
-        sp_addr, sp_scale = self.reg["setpoint"]
-        registers[temp_addr - start_address] = int(round(lab.sim.state.air_c / temp_scale)) & 0xFFFF
-        if values is None:
-            registers[sp_addr - start_address] = int(round(lab.sim.state.chamber_target_c / sp_scale)) & 0xFFFF
-            return None
-        if address == sp_addr:
-            raw = int(values[0])
-            raw = raw - 0x10000 if raw >= 0x8000 else raw
-            if not lab._set_chamber(raw * sp_scale):
-                return ExcCodes.ILLEGAL_VALUE
-        return None
-
-    def start(self) -> None:
-        from pymodbus.server import ModbusTcpServer
-        from pymodbus.simulator import DataType, SimData, SimDevice
-
-        device = SimDevice(self.device_id, simdata=[SimData(0, count=self.size, values=0,
-                                                            datatype=DataType.REGISTERS)], action=self._action)
-        self._thread.start()
-
-        def trace_packet(sending: bool, data: bytes) -> bytes:
-            """Replies mangled under the ``garbage`` fault (MBAP header kept, PDU replaced)."""
-            if sending and self.lab.faults["chamber"] == "garbage":
-                return data[:7] + bytes([0x04, 0x7F]) + b"\xff" * (len(data) - 9)
-            return data
-
-        async def serve():
-            self.server = ModbusTcpServer(device, address=(HOST, self.port), trace_packet=trace_packet)
-            await self.server.serve_forever(background=True)
-
-        asyncio.run_coroutine_threadsafe(serve(), self._loop).result(timeout=5.0)
-
-    def stop(self) -> None:
-        if self.server is not None:
-            asyncio.run_coroutine_threadsafe(self.server.shutdown(), self._loop).result(timeout=5.0)
-        self._loop.call_soon_threadsafe(self._loop.stop)
-        self._thread.join(timeout=2.0)
-        self._loop.close()
-
-
-def _port_of(address: str, field: str) -> int:
-    m = re.search(r"(?:127\.0\.0\.1|localhost)(?:::|:)(\d+)", address)
-    if not m:
-        raise RigError(f"hil: {field} {address!r} is not a 127.0.0.1 address with a port")
-    return int(m.group(1))
