@@ -154,6 +154,7 @@ def import_file(profile_path: str | Path, data_file: str | Path, out_dir: str | 
                 s.get("table_zero_azimuth_deg"), *([float(s["field_norm_ut"])] if "field_norm_ut" in s else []))
     validate_samples(df, steps, rate, str(data))
     summary = import_summary(streams, base, merged, steps, bool(sections))
+    summary["axis_check"] = _axis_checks(df)
     u = prof.get("unit") or {}
     sha = _source_sha(streams)
     session = Session(str(uuid.uuid5(uuid.NAMESPACE_OID, sha)),
@@ -165,6 +166,25 @@ def import_file(profile_path: str | Path, data_file: str | Path, out_dir: str | 
     with staged_folder(out_dir, "--out session folder") as tmp:  # whole or not at all
         write_session(session, tmp)
     return load_session(out_dir)
+
+
+def _axis_checks(df: pd.DataFrame) -> list[dict]:
+    """The gyro against the accelerometer and magnetometer directions (:mod:`workbench.importers.axes`)."""
+    from workbench.importers.axes import check_axes
+    from workbench.session import FLAG_REPEATED, FLAG_SATURATED
+
+    flags = df["flags"].to_numpy() if "flags" in df.columns else np.zeros(len(df), np.int64)
+    t, gyro = df["t"].to_numpy(), df[["gx", "gy", "gz"]].to_numpy()
+    out = []
+    for ref, cols in (("accel", ["ax", "ay", "az"]), ("mag", ["mx", "my", "mz"])):
+        if not all(c in df.columns for c in cols):
+            continue
+        bits = FLAG_SATURATED["gyro"] | FLAG_REPEATED["gyro"] | FLAG_SATURATED[ref] | FLAG_REPEATED[ref]
+        c = check_axes(t, gyro, df[cols].to_numpy(), ref, (flags & bits) == 0)
+        out.append({"reference": ref, "agrees": c.agrees, "best": c.best.tolist(), "windows": c.windows,
+                    "rms_identity_deg": c.rms_identity_deg, "rms_best_deg": c.rms_best_deg,
+                    "message": c.message()})
+    return out
 
 
 def _source_sha(streams: Mapping[str, Stream]) -> str:

@@ -83,7 +83,10 @@ def _check_stream(name: str, spec, where: str) -> None:
         raise ImportProfileError(f"{where}file: expected a file name, got {spec['file']!r}")
     _check_time(spec, where, rate_required=True)
     _check_columns(spec.get("columns"), where)
-    _mapping(spec.get("reader"), f"{where}reader")
+    reader = _mapping(spec.get("reader"), f"{where}reader")
+    if reader.get("trailing_zero_rows", "keep") not in ("keep", "drop"):
+        raise ImportProfileError(f"{where}reader.trailing_zero_rows {reader.get('trailing_zero_rows')!r}: "
+                                 "expected 'keep' or 'drop'")
     if spec.get("repeats", "flag") not in ("flag", "ignore"):
         raise ImportProfileError(f"{where}repeats {spec.get('repeats')!r}: expected 'flag' or 'ignore'")
     rng = spec.get("range")

@@ -37,7 +37,8 @@ class Stream:
     converted columns (targets as in the session, e.g. ``gx``, ``temp``); ``repeated`` (N,) the
     sample repeats the previous one exactly; ``saturated`` (N,) a value is at the declared range;
     ``clock`` the arrival-stamp fit (None for other time sources); ``index`` (N,) sample counter
-    (row number unless a counter column is declared)."""
+    (row number unless a counter column is declared); ``trailing_zero_rows`` all-zero rows dropped
+    from the end (``reader: {trailing_zero_rows: drop}``: a recorder's unfilled buffer)."""
 
     name: str
     source: str
@@ -48,6 +49,7 @@ class Stream:
     clock: ClockFit | None
     index: np.ndarray
     checks_repeats: bool
+    trailing_zero_rows: int = 0
 
     @property
     def triads(self) -> tuple[str, ...]:
@@ -121,7 +123,14 @@ def _instants(raw: pd.DataFrame, spec: Mapping, where: str) -> tuple[np.ndarray,
 
 def read_stream(name: str, spec: Mapping, path: Path, reader: Mapping, where: str) -> Stream:
     """Read stream ``name`` from ``path`` as ``spec`` (a checked profile entry) says; ``where`` names it in errors."""
-    raw = read_table(path, {**reader, **(spec.get("reader") or {})}, where)
+    reader = {**reader, **(spec.get("reader") or {})}
+    raw = read_table(path, reader, where)
+    trailing = 0
+    if reader.get("trailing_zero_rows") == "drop":  # a preallocated buffer the recorder did not fill
+        used = [c for c in raw.columns if c in _used_columns(spec)]
+        zero = (raw[used].apply(pd.to_numeric, errors="coerce") == 0).all(axis=1).to_numpy()
+        trailing = len(zero) - (int(np.flatnonzero(~zero)[-1]) + 1 if (~zero).any() else 0)
+        raw = raw.iloc[:len(raw) - trailing]
     if len(raw) == 0:
         raise ImportProfileError(f"{where}: {path.name}: no rows")
     values = convert(raw, spec["columns"], where)
@@ -142,4 +151,9 @@ def read_stream(name: str, spec: Mapping, path: Path, reader: Mapping, where: st
         limit = float(rng["value"]) * factor(rng.get("unit", dim)) / factor(dim)
         # the rail itself, one LSB either way: |value| >= the declared full scale
         saturated = np.any(np.abs(v) >= limit * (1 - 1e-9), axis=1)
-    return Stream(name, str(path), t, values, repeated, saturated, clock, index, checks)
+    return Stream(name, str(path), t, values, repeated, saturated, clock, index, checks, trailing)
+
+
+def _used_columns(spec: Mapping) -> set:
+    tspec = spec.get("time") or {}
+    return {c["column"] for c in spec["columns"].values()} | {tspec[k] for k in ("column", "counter") if k in tspec}

@@ -20,7 +20,8 @@ def _stream_entry(s: Stream) -> dict:
     entry: dict = {"file": s.source, "samples": int(len(s.t)), "rate_hz": float(s.rate_hz),
                    "columns": list(s.values.columns), "time": "arrival" if s.clock is not None else "sample",
                    "repeated": int(s.repeated.sum()) if s.checks_repeats else None,
-                   "saturated": int(s.saturated.sum()), "duration_s": float(s.t[-1] - s.t[0])}
+                   "saturated": int(s.saturated.sum()), "duration_s": float(s.t[-1] - s.t[0]),
+                   "trailing_zero_rows_dropped": s.trailing_zero_rows}
     if s.clock is not None:
         c = s.clock
         p50, p99, pmax = c.latency_percentiles_ms()
@@ -53,7 +54,9 @@ def summary_lines(summary: Mapping) -> list[str]:
         rep = "" if e["repeated"] is None else f", repeated {e['repeated']} ({100 * e['repeated'] / e['samples']:.1f} %)"
         lines.append(f"{name}{base}: {e['samples']} samples, {e['duration_s']:.1f} s, {e['rate_hz']:.3f} Hz, "
                      f"{', '.join(e['columns'])}{rep}, saturated {e['saturated']} "
-                     f"({100 * e['saturated'] / e['samples']:.1f} %)")
+                     f"({100 * e['saturated'] / e['samples']:.1f} %)"
+                     + (f"; {e['trailing_zero_rows_dropped']} all-zero rows at the end dropped (unfilled buffer)"
+                        if e.get("trailing_zero_rows_dropped") else ""))
         c = e.get("clock")
         if c is not None:
             lost = sum(g["lost_samples"] for g in c["gaps"])
@@ -70,4 +73,5 @@ def summary_lines(summary: Mapping) -> list[str]:
     marks = [f"{t} {k} {v}" for t, d in fl.items() for k, v in d.items() if v]
     lines.append(f"{summary['samples']} samples kept; flagged (left out of fits): {', '.join(marks) or 'none'}")
     lines.append(f"steps: {summary['steps']}")
+    lines.extend(c["message"] for c in summary.get("axis_check", []))
     return lines
