@@ -10,7 +10,11 @@ rad; accel ``vrw`` m/s²/√Hz, ``bias_instability`` m/s², ``rrw`` m/s³/√Hz;
 null = not observed by the record). A lazily loaded session (``load_session(dir, lazy=True)``,
 ``session.samples is None``; batch workers do this for this procedure, :data:`LAZY_OK`) is
 analysed by :func:`workbench.analysis.allan_fit.analyze_stream` in bounded memory, with the
-same result structure (the record must then be gap-free). References: thesis (shared/seeds/000_...) tables 1.1, 1.2,
+same result structure (the record must then be gap-free). A record that moves (the stationarity
+detector's statistic, :mod:`workbench.analysis.stationarity`, over 10 times its threshold for at
+least one window: motion, not noise) is refused,
+naming the step and the motion; a ``free`` step (an imported hand-held record) is analysed when it
+is still. References: thesis (shared/seeds/000_...) tables 1.1, 1.2,
 2.1, 4.1 and eq. 3.50-3.53 (process noise from these terms).
 """
 
@@ -20,6 +24,7 @@ import numpy as np
 
 from workbench.analysis.allan import GAP_POLICIES
 from workbench.analysis.allan_fit import TERMS, AllanAnalysis, analyze_record, analyze_stream
+from workbench.analysis.stationarity import detect, moving_summary
 from workbench.calset import CalibrationSet
 from workbench.errors import AnalysisError, RigLimitError
 from workbench.options import Option, check_options, defaults
@@ -58,11 +63,31 @@ def sequence(spec, **options) -> Sequence:
     return with_options(Sequence(NAME, steps), duration_s=duration_s, temperature_c=temperature_c, soak=soak)
 
 
+GROSS_MOTION = 10.0  # a window whose test statistic exceeds this many times the detector's threshold is motion, not noise
+
+
 def _hold_step(session):
-    holds = [s for s in session.steps_of_kind("static") if s.label == LABEL] or session.steps_of_kind("static")
+    holds = ([s for s in session.steps_of_kind("static") if s.label == LABEL] or session.steps_of_kind("static")
+             or session.steps_of_kind("free"))
     if not holds:
-        raise AnalysisError(f"{session.name}: no static step to analyse (expected a hold labelled {LABEL!r})")
+        raise AnalysisError(f"{session.name}: no static or free step to analyse (expected a hold labelled {LABEL!r})")
     return max(holds, key=lambda s: s.duration)
+
+
+def _refuse_motion(session, step) -> None:
+    """Raise AnalysisError naming the step and the motion seen when the record moves (an Allan deviation of a
+    moving record is the motion's, not the noise's)."""
+    df = session.step_samples(step.index)
+    if len(df) < session.sample_rate_hz:
+        return
+    gyro, accel = df[GYRO].to_numpy(float), df[ACCEL].to_numpy(float)
+    found = detect(gyro, accel, session.sample_rate_hz)
+    # not the detector's still/moving split alone: its false alarms (1e-3 per window) and an axis whose noise is
+    # far from Gaussian (coarse quantisation) cut a still record too; a window 10x over the threshold cannot be noise
+    if np.count_nonzero(found.statistic > GROSS_MOTION * found.threshold) >= found.window:
+        raise AnalysisError(f"{session.name}: step {step.index} ({step.kind}{f', {step.label}' if step.label else ''}): "
+                            f"the unit moves: {moving_summary(found, df['t'].to_numpy(float), gyro)}; "
+                            "Allan variance needs a still record")
 
 
 def analyze(session, **options) -> ProcedureResult:
@@ -73,6 +98,8 @@ def analyze(session, **options) -> ProcedureResult:
     o = check_options(NAME, OPTIONS, options, "analysis")
     taus, gap_policy = o["taus"], o["gap_policy"]
     step = _hold_step(session)
+    if session.samples is not None:
+        _refuse_motion(session, step)
     rate = float(session.sample_rate_hz)
     analyses: dict[str, AllanAnalysis] = {}
     for triad, cols, data in (("gyro", GYRO, session.gyro), ("accel", ACCEL, session.accel)):

@@ -15,6 +15,10 @@ steps. Options: ``nonlinearity`` (auto | fit | none), ``earth_rate`` (auto | mod
 3 axes: a floor for the bias wander that short dwells cannot show; default none, and a
 warning says when the dwells could hide one larger than the bias sigma).
 
+A session of ``free`` steps (the unit set down by hand, no table) is analysed from its still
+stretches (stationarity detector): the accelerometer from the gravity norm (no orientation known;
+at least 6 stretches) and the gyro bias (:mod:`workbench.analysis.still_fit`).
+
 References: thesis sec. 1.3 (shared/seeds/000_...).
 """
 
@@ -24,9 +28,10 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from procedures._triad import result_dict
+from workbench.analysis.still_fit import fit_accel_norm, fit_gyro_bias, still_means
 from workbench.analysis.turntable import fit_accel, fit_gyro_static
 from workbench.calset import CalibrationSet
-from workbench.errors import ProcedureError
+from workbench.errors import AnalysisError, ProcedureError
 from workbench.options import Option, check_options, defaults
 from workbench.procedure import ProcedureResult
 from workbench.sequence import Hold, Sequence, mount_matrix
@@ -96,9 +101,31 @@ def sequence(spec, **opts) -> Sequence:
     return Sequence(NAME, steps, options=dict(o))
 
 
+def _analyze_free(session: Session) -> ProcedureResult:
+    """Still stretches of ``free`` steps (by hand): gravity-norm accelerometer fit and gyro bias
+    (:mod:`workbench.analysis.still_fit`); an accelerometer the stretches cannot observe is left out."""
+    means = still_means(session)
+    fits, warnings = {}, []
+    try:
+        fits["accel"] = fit_accel_norm(means, session.site.gravity)
+    except AnalysisError as exc:
+        warnings.append(f"accelerometer not calibrated: {exc}")
+    fits["gyro"] = fit_gyro_bias(means, session.site.latitude)
+    calset = CalibrationSet(unit=session.unit, triads={k: f.triad_calibration() for k, f in fits.items()},
+                            notes={NAME: {k: dict(f.notes) for k, f in fits.items()}})
+    head = [f"free steps: {len(means)} still stretch(es), {sum(m.n for m in means) / session.sample_rate_hz:.1f} s "
+            "(found by the stationarity detector; no orientation known)"]
+    return ProcedureResult(NAME, result={**result_dict(fits), "still_stretches": len(means)}, calibration=calset,
+                           payload=fits, summary=head + [line for f in fits.values() for line in f.summary()],
+                           warnings=[*warnings, *(w for f in fits.values() for w in f.warnings)])
+
+
 def analyze(session: Session, **opts) -> ProcedureResult:
-    """Accelerometer and gyro static fits of all static steps (see the module docstring)."""
+    """Accelerometer and gyro static fits of all static steps, or of the still stretches of free steps
+    (see the module docstring)."""
     o = check_options(NAME, OPTIONS, opts, "analysis")
+    if session.steps_of_kind("free") and not session.steps_of_kind("static"):
+        return _analyze_free(session)
     acc = fit_accel(session, None, o["nonlinearity"], settle_s=o["settle_s"],
                     position_sigma=o.si("position_sigma_deg"),
                     bias_instability=o.si("accel_bias_instability_mg"))

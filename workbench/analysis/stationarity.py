@@ -9,7 +9,8 @@ of ``N`` samples, with the thresholds derived from the noise instead of chosen b
         + N |mean w - b_w|^2 / s_w^2                                    (second pass only)
 
 where ``s_a``, ``s_w`` are the per-sample white-noise sigmas (from the grade, or estimated from
-the quietest windows of the record, :func:`estimate_sigma`) and ``b_w`` the gyro bias found on
+the quietest windows of the record, :func:`estimate_sigma`, then refined as the mean window
+variance over the first pass's still stretches) and ``b_w`` the gyro bias found on
 the stretches of the first pass (their median, then the mean of the stretches the full test
 keeps). The mean term counts only what exceeds the Earth rate plus ``rate_tolerance`` (default
 0.2 °/s, twice a MEMS gyro's typical g-sensitivity of 0.1 °/s/g: the bias moves by that much
@@ -156,6 +157,14 @@ def detect(gyro: np.ndarray, accel: np.ndarray, sample_rate_hz: float, gyro_sigm
     min_len = max(1, int(round(min_still_s * sample_rate_hz)))
     first = _centred(var_stat, len(gyro), n) <= thr1
     stretches = _runs(first, min_len)
+    if stretches and not given:  # refine the noise on the still windows themselves (any noise colour)
+        w = np.clip(np.concatenate([np.arange(a, b) for a, b in stretches]) - n // 2, 0, len(vg) - 1)
+        if gyro_sigma is None:
+            sg = np.maximum(np.sqrt(vg[w].mean(axis=0) / (n - 1)), _floor(gyro))
+        if accel_sigma is None:
+            sa = np.maximum(np.sqrt(va[w].mean(axis=0) / (n - 1)), _floor(accel))
+        var_stat = (vg / sg**2).sum(axis=1) + (va / sa**2).sum(axis=1)
+        stretches = _runs(_centred(var_stat, len(gyro), n) <= thr1, min_len)
     if not stretches:
         return Stillness(np.zeros(len(gyro), bool), [], _centred(var_stat, len(gyro), n) / dof1, thr1 / dof1, n,
                          sg.copy(), sa.copy(), "given" if given else "estimated", np.full(3, np.nan), false_alarm)
