@@ -6,7 +6,8 @@ calibration of a unit is a new version (1, 2, ... per serial). Every write is on
 transaction (or part of one ``Store.batch()``), so a failed or interrupted write leaves the
 store as it was. SQLite writers
 take the database lock up front (``BEGIN IMMEDIATE``) so concurrent processes queue
-instead of failing mid-transaction.
+instead of failing mid-transaction. The tables and their schema revision are
+:mod:`workbench.store_schema`.
 """
 
 from __future__ import annotations
@@ -24,21 +25,19 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from sqlalchemy import (Boolean, ForeignKey, Integer, String, Text, UniqueConstraint, create_engine, event,
-                        func, inspect, select, text)
+from sqlalchemy import create_engine, event, func, inspect, select
 from sqlalchemy.engine import Engine
 from sqlalchemy.exc import IntegrityError, OperationalError, SQLAlchemyError
-from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column, sessionmaker
+from sqlalchemy.orm import Session, sessionmaker
 
 from workbench.errors import StoreError
+from workbench.store_schema import (HEAD_REVISION, MIGRATIONS, VERSION_TABLE, ApprovalRow,  # noqa: F401 (re-exported)
+                                    Base, ResultRow, SessionRow, SetRow, UnitRow, schema_revision, upgrade)
 
 if TYPE_CHECKING:  # the calibration-set format (numpy, jsonschema) loads when a set is read
     from workbench.calset import CalibrationSet
 
 DEFAULT_URL = "sqlite:///workbench.db"
-HEAD_REVISION = "0001"  # the Alembic revision this version of the code expects
-VERSION_TABLE = "alembic_version"  # where Alembic keeps the schema revision
-MIGRATIONS = Path(__file__).resolve().parent / "migrations"
 
 
 def default_url() -> str:
@@ -62,60 +61,6 @@ def redact(text: str, url: str) -> str:
 
 class StoreConflict(StoreError):
     """A transaction rolled back because another writer took the same key (e.g. a set version)."""
-
-
-class Base(DeclarativeBase):
-    pass
-
-
-class UnitRow(Base):
-    __tablename__ = "units"
-    serial: Mapped[str] = mapped_column(String(128), primary_key=True)
-    model: Mapped[str] = mapped_column(String(128), default="")
-    created: Mapped[str] = mapped_column(String(40))
-
-
-class SetRow(Base):
-    __tablename__ = "calibration_sets"
-    __table_args__ = (UniqueConstraint("serial", "version", name="uq_set_serial_version"),)
-    id: Mapped[str] = mapped_column(String(64), primary_key=True)
-    serial: Mapped[str] = mapped_column(ForeignKey("units.serial"), index=True)
-    version: Mapped[int] = mapped_column(Integer)
-    created: Mapped[str] = mapped_column(String(40))
-    procedures: Mapped[str] = mapped_column(Text)  # comma-separated, for listing
-    sha256: Mapped[str] = mapped_column(String(64))
-    body: Mapped[str] = mapped_column(Text)  # canonical JSON
-
-
-class ApprovalRow(Base):
-    __tablename__ = "approvals"
-    set_id: Mapped[str] = mapped_column(ForeignKey("calibration_sets.id"), primary_key=True)
-    approved_by: Mapped[str] = mapped_column(String(128))
-    approved_at: Mapped[str] = mapped_column(String(40))
-    comment: Mapped[str] = mapped_column(Text, default="")
-
-
-class SessionRow(Base):
-    __tablename__ = "sessions"
-    id: Mapped[str] = mapped_column(String(64), primary_key=True)
-    serial: Mapped[str] = mapped_column(ForeignKey("units.serial"), index=True)
-    procedure: Mapped[str] = mapped_column(String(64))
-    path: Mapped[str] = mapped_column(Text)
-    created: Mapped[str] = mapped_column(String(40))
-    sha256: Mapped[str] = mapped_column(String(64), default="")
-    n_steps: Mapped[int] = mapped_column(Integer, default=0)
-    complete: Mapped[bool] = mapped_column(Boolean, default=True)
-
-
-class ResultRow(Base):
-    __tablename__ = "results"
-    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
-    procedure: Mapped[str] = mapped_column(String(64), index=True)
-    session_id: Mapped[str] = mapped_column(String(64), index=True)
-    serial: Mapped[str] = mapped_column(String(128), index=True)
-    calibration_id: Mapped[str | None] = mapped_column(String(64), nullable=True)
-    created: Mapped[str] = mapped_column(String(40))
-    body: Mapped[str] = mapped_column(Text)
 
 
 @dataclass(frozen=True)
@@ -392,37 +337,3 @@ class Store:
             return [{"id": r.id, "procedure": r.procedure, "session_id": r.session_id, "serial": r.serial,
                      "calibration_id": r.calibration_id, "created": r.created, "result": json.loads(r.body)}
                     for r in db.scalars(q.order_by(ResultRow.id.desc()))]
-
-
-def _alembic_config(connection):
-    from alembic.config import Config
-
-    cfg = Config()
-    cfg.set_main_option("script_location", str(MIGRATIONS))
-    cfg.attributes["connection"] = connection
-    return cfg
-
-
-def schema_revision(engine: Engine) -> str | None:
-    """The Alembic revision of the database's schema (None for an empty database).
-
-    Read from Alembic's version table directly: opening the store does not load Alembic.
-    """
-    with engine.connect() as conn:
-        if not inspect(conn).has_table(VERSION_TABLE):
-            return None
-        heads = conn.execute(text(f"SELECT version_num FROM {VERSION_TABLE}")).scalars().all()
-    if len(heads) > 1:
-        raise StoreError(f"store {engine.url}: several schema revisions ({', '.join(heads)}); "
-                         f"run `workbench db upgrade`")
-    return heads[0] if heads else None
-
-
-def upgrade(engine_or_url: Engine | str, revision: str = "head") -> str | None:
-    """Migrate the database to ``revision`` (Alembic); returns the revision reached."""
-    from alembic import command
-
-    engine = create_engine(engine_or_url) if isinstance(engine_or_url, str) else engine_or_url
-    with engine.begin() as conn:
-        command.upgrade(_alembic_config(conn), revision)
-    return schema_revision(engine)
