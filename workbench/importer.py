@@ -171,7 +171,7 @@ def import_file(profile_path: str | Path, data_file: str | Path, out_dir: str | 
 def _axis_checks(df: pd.DataFrame) -> list[dict]:
     """The gyro against the accelerometer and magnetometer directions (:mod:`workbench.importers.axes`)."""
     from workbench.importers.axes import check_axes
-    from workbench.session import FLAG_REPEATED, FLAG_SATURATED
+    from workbench.session import FLAG_SATURATED
 
     flags = df["flags"].to_numpy() if "flags" in df.columns else np.zeros(len(df), np.int64)
     t, gyro = df["t"].to_numpy(), df[["gx", "gy", "gz"]].to_numpy()
@@ -179,7 +179,8 @@ def _axis_checks(df: pd.DataFrame) -> list[dict]:
     for ref, cols in (("accel", ["ax", "ay", "az"]), ("mag", ["mx", "my", "mz"])):
         if not all(c in df.columns for c in cols):
             continue
-        bits = FLAG_SATURATED["gyro"] | FLAG_REPEATED["gyro"] | FLAG_SATURATED[ref] | FLAG_REPEATED[ref]
+        # saturated samples misstate the motion; an interpolation across a left-out repeat does not
+        bits = FLAG_SATURATED["gyro"] | FLAG_SATURATED[ref]
         c = check_axes(t, gyro, df[cols].to_numpy(), ref, (flags & bits) == 0)
         out.append({"reference": ref, "agrees": c.agrees, "best": c.best.tolist(), "windows": c.windows,
                     "rms_identity_deg": c.rms_identity_deg, "rms_best_deg": c.rms_best_deg,
