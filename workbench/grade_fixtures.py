@@ -179,7 +179,56 @@ def _parse_triad(data, triad: str, path: Path) -> TriadSpec:
 
 
 _TOP = {"name", "description", "source", "notes", "sample_rate_hz", "t_ref_c", "thermal_time_constant_s",
-        "temp_sensor_noise_c", *TRIADS}
+        "temp_sensor_noise_c", "imperfections", *TRIADS}
+# keys of a triad in the ``imperfections`` block: field -> dimension template ('q' = the triad's quantity)
+_IMPERFECTION_TERMS = {"warm_up_bias": "q", "turn_on_bias": "q", "turn_on_scale": "ratio",
+                       "scale_drift": "ratio/h", "noise_temp_coeff": "1/C"}
+_IMPERFECTION_UNITS = {"ratio/h": {"ppm_per_h": 1e-6 / HOUR, "pct_per_h": 1e-2 / HOUR},
+                       "1/C": {"per_c": 1.0, "pct_per_c": 1e-2}}
+_IMPERFECTION_TOP = {"warm_up_tau_s", "noise_t_ref_c", "notes", *TRIADS}
+
+
+def _parse_imperfections(data, triads: tuple[str, ...], path: Path) -> dict:
+    """The grade's ``imperfections`` block (lab-unit keys such as ``turn_on_bias_mg``) -> SI
+    (see :class:`~workbench.grade_types.SensorSpec`); one-line SpecError naming the field."""
+    where = f"{path}: imperfections"
+    if not isinstance(data, Mapping):
+        raise SpecError(f"{where}: expected a mapping (warm_up_tau_s, noise_t_ref_c, notes, and per triad)")
+    unknown = sorted(set(map(str, data)) - _IMPERFECTION_TOP)
+    if unknown:
+        raise SpecError(f"{where}: unknown field {unknown[0]!r} (fields: {', '.join(sorted(_IMPERFECTION_TOP))})")
+    out: dict = {}
+    for key in ("warm_up_tau_s", "noise_t_ref_c"):
+        if key in data:
+            out[key] = _number(data[key], f"{where}.{key}", positive=key == "warm_up_tau_s")
+    for triad in TRIADS:
+        if triad not in data:
+            continue
+        if triad not in triads:
+            raise SpecError(f"{where}.{triad}: the grade has no {triad} triad")
+        block = data[triad]
+        if not isinstance(block, Mapping):
+            raise SpecError(f"{where}.{triad}: expected a mapping of imperfections")
+        values: dict = {}
+        for key, raw in block.items():
+            at = f"{where}.{triad}.{key}"
+            term = next((t for t in _IMPERFECTION_TERMS if str(key).startswith(t + "_")), None)
+            if term is None:
+                raise SpecError(f"{at}: unknown key (terms: {', '.join(_IMPERFECTION_TERMS)})")
+            dim = _IMPERFECTION_TERMS[term].replace("q", _QUANTITY[triad])
+            table = _UNITS.get(dim) or _IMPERFECTION_UNITS[dim]
+            unit = str(key)[len(term) + 1:]
+            if unit not in table:
+                raise SpecError(f"{at}: unit {unit!r} is not one of: {', '.join(table)}")
+            if term == "warm_up_bias":  # a transient with its sign, not a spread
+                items = raw if isinstance(raw, list) else [raw]
+                if len(items) not in (1, 3):
+                    raise SpecError(f"{at}: expected a number or a list of 3 (x, y, z), got {len(items)} values")
+                values[term] = np.broadcast_to([_number(v, at) for v in items], (3,)) * table[unit]
+            else:
+                values[term] = _axis_values(raw, at) * table[unit]
+        out[triad] = values
+    return out
 
 
 def _parse_spec(data: Mapping, path: Path) -> SensorSpec:
@@ -200,4 +249,5 @@ def _parse_spec(data: Mapping, path: Path) -> SensorSpec:
         thermal_time_constant_s=_number(data.get("thermal_time_constant_s", 600.0),
                                         f"{path}: thermal_time_constant_s", positive=True),
         temp_sensor_noise_c=_number(data.get("temp_sensor_noise_c", 0.0), f"{path}: temp_sensor_noise_c"),
-        specs=specs, path=path)
+        specs=specs, path=path,
+        imperfections=_parse_imperfections(data["imperfections"], triads, path) if "imperfections" in data else {})

@@ -136,6 +136,9 @@ class SensorSpec:
     temp_sensor_noise_c: float
     specs: Mapping[str, TriadSpec]
     path: Path | None = None
+    # the fixture's ``imperfections`` block in SI (virtual-lab defaults, workbench.sim.imperfections):
+    # {"warm_up_tau_s": s, "noise_t_ref_c": °C, triad: {field: (3,) SI}}; empty when the grade has none
+    imperfections: Mapping = field(default_factory=dict)
 
     @property
     def gyro(self) -> TriadSpec | None:

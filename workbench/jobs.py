@@ -15,13 +15,14 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from types import ModuleType
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from workbench import units
 from workbench.calset import CalibrationSet, Unit, atomic_write_text, merge
 from workbench.errors import ProcedureError, WorkbenchError
-from workbench.options import declarations, split, validate
+from workbench.options import declarations, rig_options, split, validate
 from workbench.plausibility import gate
 from workbench.procedure import ProcedureResult, run_analysis
 from workbench.registry import campaign_procedures
@@ -29,16 +30,23 @@ from workbench.rigconfig import RigConfig, load_rig_config
 from workbench.runner import Progress, record, reopen, rig_state_for_resume, start
 from workbench.session import Session
 
+if TYPE_CHECKING:
+    from workbench.sim.imperfections import Imperfections
+
 # run first when a validation needs a set, with their options (a shorter Allan record)
 CALIBRATING = {"multiposition": {}, "rate": {}, "magnetometer": {}, "allan": {"duration_s": 1800.0, "soak": False}}
 
 
-def open_rig(cfg: RigConfig, truth, seed: int, state=None):
-    """A rig for ``cfg``: the simulated rig (driving ``truth``), or a real driver."""
+def open_rig(cfg: RigConfig, truth, seed: int, state=None, imperfections=None):
+    """A rig for ``cfg``: the simulated rig (driving ``truth``, with ``imperfections``, a
+    :class:`workbench.sim.imperfections.Imperfections` or None), or a real driver."""
     if cfg.driver == "sim":
         from workbench.sim.rig import SimRig
 
-        return SimRig(cfg, truth, seed, state)
+        return SimRig(cfg, truth, seed, state, imperfections=imperfections)
+    if imperfections is not None:
+        raise ProcedureError(f"rig {cfg.name}: imperfections are an option of the simulated rig only "
+                             "(a real unit brings its own)")
     try:
         from workbench.drivers.rig import open_real_rig
     except ImportError:
@@ -78,6 +86,22 @@ def simulate(sequence, unit, seed: int, out_dir: str | Path | None = None, rig=N
     return record(rec, sim, progress), truth
 
 
+def sim_imperfections(spec, rig: Mapping) -> Imperfections | None:
+    """The simulated rig's imperfections from the rig-stage options (:data:`workbench.options.RIG_OPTIONS`,
+    lab units): the grade's imperfections block for the groups named, the table errors in degrees;
+    None when everything is off (the rig then follows the model exactly)."""
+    from workbench.sim.imperfections import Imperfections
+
+    groups = str(rig.get("imperfections", "off")).strip()
+    names = groups if groups in ("off", "all") else [g.strip() for g in groups.split(",") if g.strip()]
+    table = {k: np.radians(float(rig.get(f"{k}_deg", 0.0) or 0.0))
+             for k in ("table_indexing_error", "table_wobble", "table_axis_tilt")}
+    if names == "all" and not spec.imperfections:
+        raise ProcedureError(f"imperfections=all: grade {spec.name} has no imperfections block")
+    imp = Imperfections.from_spec(spec, names, **table)
+    return imp if imp.unit or imp.table else None
+
+
 def applies(proc: ModuleType, spec) -> bool:
     """Whether procedure ``proc`` applies to a unit of grade ``spec`` (its triads, its own test)."""
     if not set(proc.TRIADS) <= set(spec.triads):
@@ -103,11 +127,13 @@ def record_procedure(proc: ModuleType, spec, truth, cfg: RigConfig, seed: int, o
                              f"grade {spec.name} has {', '.join(spec.triads)}")
     seq_options, analysis_options = split(proc, options)
     sequence = proc.sequence(spec, **validate(proc, seq_options, "sequence"))
-    rig = open_rig(cfg, truth, seed)
+    rig_given = {k: v for k, v in dict(options or {}).items() if k in rig_options(proc, options).given}
+    rig = open_rig(cfg, truth, seed, imperfections=sim_imperfections(spec, rig_options(proc, options)))
     # the analysis options given with the recording travel in the manifest, for a resumed run
     rec = start(sequence, rig, Unit(truth.serial, truth.model), proc.NAME, out_dir,
                 extra={"seed": int(seed), "grade": spec.name, "rig_config": str(cfg.path or cfg.name),
-                       **({"analysis_options": analysis_options} if analysis_options else {})})
+                       **({"analysis_options": analysis_options} if analysis_options else {}),
+                       **({"rig_options": rig_given} if rig_given else {})})
     if out_dir is not None and cfg.driver == "sim":
         from workbench.sim import write_truth
 
@@ -138,8 +164,14 @@ def resume_procedure(out_dir: Path, progress: Progress | None = None) -> Session
         truth = UnitTruth.from_dict(json.loads(truth_file.read_text())["unit"], str(truth_file))
     else:
         truth = None
-    # the saved rig state carries the noise processes: the resumed part continues them exactly
-    rig = open_rig(cfg, truth, int(m.get("seed", 0)), rig_state_for_resume(rec))
+    # the saved rig state carries the noise processes: the resumed part continues them exactly, and
+    # the rig options recorded with the session switch the same imperfections on
+    imperfections = None
+    if m.get("rig_options") and cfg.driver == "sim":
+        from workbench.grades import load_spec
+
+        imperfections = sim_imperfections(load_spec(m.get("grade") or truth.model), m["rig_options"])
+    rig = open_rig(cfg, truth, int(m.get("seed", 0)), rig_state_for_resume(rec), imperfections)
     return record(rec, rig, progress)
 
 

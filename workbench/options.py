@@ -1,13 +1,16 @@
 """Declared procedure options: each option declared once, one validator for every caller.
 
 A procedure module lists its options in ``OPTIONS``, a tuple of :class:`Option` (name, stage
-``sequence`` | ``analysis`` | ``both``, type, default, help, lab unit, allowed range or
+``sequence`` | ``analysis`` | ``both`` | ``rig``, type, default, help, lab unit, allowed range or
 choices). :func:`check_options` is the one validator: it refuses an unknown name (naming the
 nearest declared one), checks type, range and choices with a one-line :class:`ProcedureError`
 naming the option and its unit, fills in the defaults and keeps the options of one stage.
 :func:`validate` and :func:`split` apply it to a procedure module (``run``, ``analyze``,
 ``campaign``, ``batch`` and the dashboard widgets all go through them), :func:`option_rows`
 gives the table ``workbench procedures PROC`` prints.
+
+Every turntable procedure also takes the :data:`RIG_OPTIONS` (stage ``rig``: the simulated rig's
+imperfections, neither the sequence's nor the analysis's; :func:`rig_options` picks them).
 
 Values stay in the option's declared lab unit (``table_angle_deg`` in degrees, as given);
 :meth:`Options.si` converts one to SI through :mod:`workbench.units`.
@@ -23,7 +26,7 @@ from typing import Any
 
 from workbench.errors import ProcedureError
 
-STAGES = ("sequence", "analysis", "both")
+STAGES = ("sequence", "analysis", "both", "rig")
 # float, int, bool, str: one value; list: a JSON list (its items checked by the procedure);
 # magnitude: a number >= 0 or one per axis (3); any: any JSON value (e.g. a mount name or matrix)
 TYPES = ("float", "int", "bool", "str", "list", "magnitude", "any")
@@ -59,8 +62,8 @@ class Option:
             raise ValueError(f"option {self.name}: type {self.type!r} is not one of {', '.join(TYPES)}")
 
     def in_stage(self, stage: str | None) -> bool:
-        """Whether the option belongs to ``stage`` (None: every stage)."""
-        return stage is None or self.stage in (stage, "both")
+        """Whether the option belongs to ``stage`` (None: every stage; ``both`` is sequence and analysis)."""
+        return stage is None or self.stage == stage or (self.stage == "both" and stage in ("sequence", "analysis"))
 
     def allowed(self) -> str:
         """The allowed values in words, e.g. ``> 0 s``, ``one of ABAB, ABBA``, ``>= 0 deg or 'auto'``."""
@@ -154,6 +157,19 @@ class Options(dict):
         return float(value) * units.factor(opt.unit)
 
 
+# options of the simulated rig, declared once for every turntable procedure (workbench.jobs reads them)
+RIG_OPTIONS = (
+    Option("imperfections", "rig", "str", "off", "virtual lab only: the unit's imperfections from its grade's "
+           "imperfections block: off, all, or groups joined by commas (warm_up, turn_on, scale_drift, noise_temp)"),
+    Option("table_indexing_error_deg", "rig", "float", 0.0, "virtual lab only: systematic table angle error "
+           "a sin(angle)", unit="deg", ge=-1.0, le=1.0),
+    Option("table_wobble_deg", "rig", "float", 0.0, "virtual lab only: once-per-revolution axis wobble",
+           unit="deg", ge=-1.0, le=1.0),
+    Option("table_axis_tilt_deg", "rig", "float", 0.0, "virtual lab only: table axis tilt from the vertical",
+           unit="deg", ge=-1.0, le=1.0),
+)
+
+
 def defaults(declared: Iterable[Option]) -> dict:
     """``{name: default}`` of declarations (a procedure's ``DEFAULTS``)."""
     return {o.name: o.default for o in declared}
@@ -186,11 +202,19 @@ def check_options(name: str, declared: Iterable[Option], options: Mapping | None
 
 
 def declarations(proc) -> tuple[Option, ...]:
-    """A procedure module's ``OPTIONS``; a module with ``DEFAULTS`` only declares each as ``any`` of both stages."""
+    """A procedure module's ``OPTIONS`` and, for a turntable procedure (not a ``DRIVE``), the
+    :data:`RIG_OPTIONS`; a module with ``DEFAULTS`` only declares each as ``any`` of both stages."""
     declared = getattr(proc, "OPTIONS", None)
-    if declared is not None:
-        return tuple(declared)
-    return tuple(Option(k, "both", "any", v, "") for k, v in dict(getattr(proc, "DEFAULTS", {})).items())
+    if declared is None:
+        declared = tuple(Option(k, "both", "any", v, "") for k, v in dict(getattr(proc, "DEFAULTS", {})).items())
+    own = {o.name for o in declared}
+    rig = () if getattr(proc, "DRIVE", False) else tuple(o for o in RIG_OPTIONS if o.name not in own)
+    return tuple(declared) + rig
+
+
+def rig_options(proc, options: Mapping | None) -> Options:
+    """The rig-stage options of ``options`` (validated, defaults filled) for procedure ``proc``."""
+    return validate(proc, options, "rig")
 
 
 def validate(proc, options: Mapping | None, stage: str | None = None) -> Options:

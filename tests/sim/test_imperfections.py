@@ -95,3 +95,76 @@ def test_the_simulated_rig_takes_the_imperfections():
     b = SimRig(cfg, TRUTH, 2, imperfections=Imperfections(turn_on_bias={"gyro": 100 * DPH})).advance(np.zeros(300))
     d = b[["gx", "gy", "gz"]].to_numpy() - a[["gx", "gy", "gz"]].to_numpy()
     assert np.all(d.std(axis=0) < 1e-12) and np.abs(d[0]).max() > 1 * DPH
+
+
+def test_scale_factor_drift_within_a_run():
+    # 1 rad/s about z for 600 s; with and without the drift the noise is the same sample for sample, so
+    # the difference is r t (the model's output, ~1 rad/s) exactly: its slope over 0-600 s is this
+    # power-on's rate r. 120 power-ons: the std of r within 26 % (4 sigma of a std from 120 draws) of
+    # the setting; off (the default) the samples are unchanged.
+    sd = 200e-6 / 3600.0  # 200 ppm/h
+    imp = Imperfections(scale_drift={"gyro": sd})
+    np.testing.assert_array_equal(_static(VirtualIMU(TRUTH, 4, Imperfections()), 5.0, rate=(0, 0, 1.0))[0],
+                                  _static(VirtualIMU(TRUTH, 4), 5.0, rate=(0, 0, 1.0))[0])
+    n = int(600 * TRUTH.sample_rate_hz)
+    t = np.arange(n) / TRUTH.sample_rate_hz
+    rates = []
+    for s in range(120):
+        d = (_static(VirtualIMU(TRUTH, s, imp), 600.0, rate=(0, 0, 1.0))[0][:, 2]
+             - _static(VirtualIMU(TRUTH, s), 600.0, rate=(0, 0, 1.0))[0][:, 2])
+        rates.append(np.polyfit(t, d, 1)[0])
+        if s == 0:  # the drawn rate itself, to rounding (the model output is 1 rad/s within 1 %)
+            r0 = imp.draw(tuple(TRUTH.triads), 0)[2][2]
+            assert rates[0] == pytest.approx(r0, rel=0.02)
+    assert np.std(rates, ddof=1) == pytest.approx(sd, rel=0.26)
+
+
+def test_grade_block_sets_the_defaults():
+    from workbench.grade_types import SpecError
+
+    spec = load_spec("industrial_mems")
+    imp = Imperfections.from_spec(spec, ["turn_on"])
+    # fixture: turn_on_bias_mg 5, turn_on_scale_ppm 1500 (accel); turn_on_bias_deg_per_h 200 (gyro)
+    np.testing.assert_allclose(imp.turn_on_bias["accel"], 5 * factor("mg"))
+    np.testing.assert_allclose(imp.turn_on_scale["accel"], 1500e-6)
+    np.testing.assert_allclose(imp.turn_on_bias["gyro"], 200 * DPH)
+    assert not imp.warm_up_bias and not imp.scale_drift and imp.warm_up_tau_s == 300.0
+    every = Imperfections.from_spec(spec, "all")
+    np.testing.assert_allclose(every.scale_drift["gyro"], 200e-6 / 3600.0)
+    assert not Imperfections.from_spec(spec, "off").unit
+    with pytest.raises(WorkbenchError, match="unknown 'warmup'"):
+        Imperfections.from_spec(spec, ["warmup"])
+    with pytest.raises(WorkbenchError, match="has no 'warm_up'"):
+        Imperfections.from_spec(load_spec("hg1700"), ["warm_up"])
+    import yaml
+    from workbench.grade_fixtures import _parse_spec
+
+    data = yaml.safe_load(spec.path.read_text())
+    data["imperfections"]["accel"]["turn_on_bias_deg_per_h"] = 1.0
+    with pytest.raises(SpecError, match=r"imperfections\.accel\.turn_on_bias_deg_per_h: unit 'deg_per_h'"):
+        _parse_spec(data, spec.path)
+
+
+def test_procedure_options_switch_them_on(tmp_path):
+    # `-o imperfections=turn_on` through workbench.jobs.record_procedure: the gyro samples differ from the
+    # same seed without by this power-on's offset b_on + dM_on y (the noise is the same); |dM_on y| is
+    # below 4 x 3000 ppm x 0.2 °/s (largest |y| at rest: bias 360 °/h x 4 + Earth rate).
+    import procedures.multiposition as mp
+    from workbench.jobs import open_rig, record_procedure
+    from workbench.options import option_rows
+    from workbench.rigconfig import load_rig_config
+    from dataclasses import replace
+
+    cfg = load_rig_config("sim")
+    opts = {"positions": 6, "dwell_s": 2.0}
+    off = record_procedure(mp, SPEC, TRUTH, cfg, 7, None, opts)
+    on = record_procedure(mp, SPEC, TRUTH, cfg, 7, tmp_path / "s", {**opts, "imperfections": "turn_on"})
+    d = on.samples[["gx", "gy", "gz"]].to_numpy() - off.samples[["gx", "gy", "gz"]].to_numpy()
+    b_on = Imperfections.from_spec(SPEC, ["turn_on"]).draw(tuple(TRUTH.triads), 7)[0][:3]
+    assert np.all(np.abs(d - b_on) < 4 * 3000e-6 * np.radians(0.2))
+    assert np.abs(b_on).max() > 20 * DPH  # a real offset (1-sigma 200 °/h), not a zero
+    import json
+    assert json.loads((tmp_path / "s" / "session.json").read_text())["rig_options"] == {"imperfections": "turn_on"}
+    assert {"imperfections", "table_wobble_deg"} <= {r["name"] for r in option_rows(mp)}
+    with pytest.raises(WorkbenchError, match="simulated rig only"):
+        open_rig(replace(cfg, driver="acme"), TRUTH, 0, imperfections=Imperfections(turn_on_bias={"gyro": 1.0}))

@@ -10,8 +10,8 @@ For each triad, in this order (all SI, body frame)::
     y      = clip(y, -range, +range)              saturation at the full scale
 
 With :class:`~workbench.sim.imperfections.Imperfections` (off by default), before the noise:
-``clean = (I + dM_on) clean + b_on + b_w exp(-t / tau)`` (turn-on scale factor and bias, warm-up
-transient), and the noise is scaled by ``1 + c (T - t_ref)``.
+``clean = (I + dM_on + r t) clean + b_on + b_w exp(-t / tau)`` (turn-on scale factor, its drift
+within the run, turn-on bias, warm-up transient), and the noise is scaled by ``1 + c (T - t_ref)``.
 
 The unit's thermometer reads ``T + N(0, temp_sensor_noise_c²)``.
 
@@ -65,7 +65,7 @@ class VirtualIMU:
         self.imperfections = imperfections
         self._k = 0  # samples produced since power-on
         if imperfections is not None:
-            self._on_bias, self._on_scale = imperfections.draw(tuple(truth.triads), seed)
+            self._on_bias, self._on_scale, self._scale_rate = imperfections.draw(tuple(truth.triads), seed)
             self._warm = imperfections.vector("warm_up_bias", tuple(truth.triads))
             self._noise_tc = imperfections.vector("noise_temp_coeff", tuple(truth.triads))
         self.dt = 1.0 / truth.sample_rate_hz
@@ -132,7 +132,8 @@ class VirtualIMU:
         imp = self.imperfections
         if imp is not None:
             t = (self._k + np.arange(n)) * self.dt
-            clean = clean * (1.0 + self._on_scale) + self._on_bias + np.exp(-t / imp.warm_up_tau_s)[:, None] * self._warm
+            scale = 1.0 + self._on_scale + (t[:, None] * self._scale_rate if self._scale_rate.any() else 0.0)
+            clean = clean * scale + self._on_bias + np.exp(-t / imp.warm_up_tau_s)[:, None] * self._warm
             noise = noise * (1.0 + np.outer(temp_c - imp.noise_t_ref_c, self._noise_tc))
         self._k += n
         y = clean + noise
