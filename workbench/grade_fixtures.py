@@ -183,8 +183,8 @@ _TOP = {"name", "description", "source", "notes", "sample_rate_hz", "t_ref_c", "
 # keys of a triad in the ``imperfections`` block: field -> dimension template ('q' = the triad's quantity)
 _IMPERFECTION_TERMS = {"warm_up_bias": "q", "turn_on_bias": "q", "turn_on_scale": "ratio",
                        "scale_drift": "ratio/h", "noise_temp_coeff": "1/C"}
-_IMPERFECTION_UNITS = {"ratio/h": {"ppm_per_h": 1e-6 / HOUR, "pct_per_h": 1e-2 / HOUR},
-                       "1/C": {"per_c": 1.0, "pct_per_c": 1e-2}}
+_IMPERFECTION_UNITS = {"ratio/h": {"ppm_per_h": "ppm/h", "pct_per_h": "%/h"},
+                       "1/C": {"per_c": "1/degC", "pct_per_c": "%/degC"}}
 _IMPERFECTION_TOP = {"warm_up_tau_s", "noise_t_ref_c", "notes", *TRIADS}
 
 
@@ -224,9 +224,9 @@ def _parse_imperfections(data, triads: tuple[str, ...], path: Path) -> dict:
                 items = raw if isinstance(raw, list) else [raw]
                 if len(items) not in (1, 3):
                     raise SpecError(f"{at}: expected a number or a list of 3 (x, y, z), got {len(items)} values")
-                values[term] = np.broadcast_to([_number(v, at) for v in items], (3,)) * table[unit]
+                values[term] = np.broadcast_to([_number(v, at) for v in items], (3,)) * factor(table[unit])
             else:
-                values[term] = _axis_values(raw, at) * table[unit]
+                values[term] = _axis_values(raw, at) * factor(table[unit])
         out[triad] = values
     return out
 

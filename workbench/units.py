@@ -37,6 +37,8 @@ _FACTORS = {
     "m/s/h": 1.0 / HOUR, "deg/s/sqrt(Hz)": DEG, "mg/sqrt(Hz)": G0 * 1e-3, "uT/sqrt(Hz)": 1.0, "nT/sqrt(Hz)": 1e-3,
     "rad/s/sqrt(s)": 1.0, "ug/sqrt(s)": G0 * 1e-6, "m/s^2/sqrt(s)": 1.0, "uT/sqrt(s)": 1.0, "urad": 1e-6,
     "uT*s": 1.0, "deg/s/g": DEG / G0, "rad/s/(m/s^2)": 1.0,
+    # virtual-lab imperfections (a grade's imperfections block): scale-factor drift, noise per °C
+    "ppm/h": 1e-6 / HOUR, "%/h": 1e-2 / HOUR, "1/degC": 1.0, "%/degC": 1e-2,
 }
 LABELS = {"deg/sqrt(h)": "°/√h", "deg/h": "°/h", "deg/s": "°/s", "ug/sqrt(Hz)": "µg/√Hz", "ug": "µg",
           "uT": "µT", "ut": "µT", "deg": "°", "m/s/sqrt(h)": "m/s/√h", "deg/h/sqrt(h)": "°/h/√h",
