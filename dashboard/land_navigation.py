@@ -12,7 +12,7 @@ from __future__ import annotations
 import pandas as pd
 import streamlit as st
 
-from dashboard import common
+from dashboard import ui
 
 SEED_NOTE = {"sf_state": "thesis table 2.9 (SF state): max < 1.3 %, mean < 0.6 %",
              "no_sf_state": "thesis table 2.8 (no SF state): max ≈ 5.5 %, mean ≈ 4 %"}
@@ -83,9 +83,9 @@ def land_navigation_section() -> None:
     st.caption("Runs: `workbench run lns-dead-reckoning --unit quasi_tactical --rig sim` (thesis ch. 2) and "
                "`workbench run land-ins --unit tactical_low_noise --rig sim` (paper 001).")
     results = []
-    with common.guarded("store"):
+    with ui.guarded("store"):
         for proc in ("lns-dead-reckoning", "land-ins"):
-            results += common.store().list_results(procedure=proc)
+            results += ui.store().list_results(procedure=proc)
     if not results:
         st.info("No stored land-navigation result yet.")
         return

@@ -30,3 +30,26 @@ def confined_folder(typed: str, roots: list[Path]) -> Path:
         raise WorkbenchError(f"{typed}: outside the data roots ({', '.join(map(str, roots))}); "
                              f"set {ROOTS_ENV} to add a folder")
     return path
+
+
+def runs_dir() -> Path:
+    """Where dashboard runs write their folders: ``WORKBENCH_RUNS``, else next to a SQLite store, else ./runs."""
+    from workbench.store import default_url
+
+    env = os.environ.get("WORKBENCH_RUNS")
+    if env:
+        return Path(env)
+    url = default_url()
+    if url.startswith("sqlite:///") and url != "sqlite:///:memory:":
+        return Path(url.removeprefix("sqlite:///")).resolve().parent / "runs"
+    return Path("runs").resolve()
+
+
+def default_roots() -> list[Path]:
+    """Folders a typed session folder may lie in by default: the runs folder, a SQLite store's folder, the cwd."""
+    from workbench.store import default_url
+
+    url = default_url()
+    store = [Path(url.removeprefix("sqlite:///")).resolve().parent] \
+        if url.startswith("sqlite:///") and url != "sqlite:///:memory:" else []
+    return [runs_dir(), *store, Path.cwd()]

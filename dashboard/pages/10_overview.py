@@ -3,7 +3,7 @@
 import pandas as pd
 import streamlit as st
 
-from dashboard import common
+from dashboard import jobs, ui
 from workbench import registry
 from workbench.errors import WorkbenchError
 from workbench.store import default_url, redact_url
@@ -14,13 +14,13 @@ st.title("Calibration workbench")
 st.caption(f"Store: `{redact_url(default_url())}`")
 
 try:
-    db = common.store()
+    db = ui.store()
     units, sets, sessions = db.units(), db.list_sets(), db.list_sessions()
 except WorkbenchError as exc:
-    common.show_error(exc, "store")
+    ui.show_error(exc, "store")
     st.stop()
 
-runs = [common.run_status(f) for f in common.list_runs()]
+runs = [jobs.run_status(f) for f in jobs.list_runs()]
 running = [r for r in runs if r.state == "running"]
 c1, c2, c3, c4 = st.columns(4)
 c1.metric("Units", len(units))

@@ -1,6 +1,6 @@
 """Sessions: browse recorded sessions, import a file through an import profile, inspect samples by step.
 
-Plots are min/max envelopes of at most a few thousand points (``common.downsample``), so a
+Plots are min/max envelopes of at most a few thousand points (``charts.downsample``), so a
 multi-hour session at hundreds of Hz stays responsive. An import is written to a temporary
 folder, validated by loading it, and only then moved into place and recorded in the store.
 """
@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 import streamlit as st
 
-from dashboard import common
+from dashboard import charts, jobs, results, roots, ui
 from workbench.calset import file_sha256
 from workbench.errors import WorkbenchError
 
@@ -31,12 +31,12 @@ def _load(folder: str, mtime: float):
 
 def load(folder: Path):
     """The session in ``folder`` (cached per folder version); raises SessionError."""
-    return _load(str(folder), common.folder_mtime(Path(folder)))
+    return _load(str(folder), results.folder_mtime(Path(folder)))
 
 
 def import_profiles() -> dict[str, Path]:
     """Import profiles shipped in fixtures (any ``*.yaml`` under a folder named like ``*profile*``)."""
-    found = sorted(p for p in common.REPO.glob("fixtures/**/*.y*ml") if "profile" in str(p.parent.name))
+    found = sorted(p for p in jobs.REPO.glob("fixtures/**/*.y*ml") if "profile" in str(p.parent.name))
     return {p.stem: p for p in found}
 
 
@@ -49,7 +49,7 @@ def import_upload(profile: Path, name: str, data: bytes, companions: dict[str, b
     """
     from workbench.importer import import_file
 
-    dest_root = common.runs_dir() / "imports"
+    dest_root = roots.runs_dir() / "imports"
     dest_root.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=dest_root, prefix=".import-") as tmp:
         src = Path(tmp) / Path(name).name
@@ -65,7 +65,7 @@ def import_upload(profile: Path, name: str, data: bytes, companions: dict[str, b
         if dest.exists():
             raise FileExistsError(f"{dest} already exists (this recording was imported before)")
         shutil.move(str(out), dest)
-    common.store().add_session(session.id, session.unit.serial, session.unit.model, session.procedure or "import",
+    ui.store().add_session(session.id, session.unit.serial, session.unit.model, session.procedure or "import",
                                str(dest), file_sha256(dest / "samples.parquet"), len(session.steps), True)
     return dest
 
@@ -98,24 +98,24 @@ with tab_import:
                                  {c.name: c.getvalue() for c in companions})
             st.success(f"Imported into {dest}")
         except Exception as exc:  # noqa: BLE001 - unreadable uploads raise many types; nothing was kept
-            common.show_error(exc, f"import of {data_file.name}")
+            ui.show_error(exc, f"import of {data_file.name}")
 
 with tab_browse:
-    folder = common.session_picker(key="sess.pick")
+    folder = results.session_picker(key="sess.pick")
     if folder is None:
         st.info("No sessions yet.")
         st.stop()
     try:
         session = load(folder)
     except WorkbenchError as exc:
-        common.show_error(exc)
+        ui.show_error(exc)
         st.stop()
 
     c1, c2, c3, c4 = st.columns([3, 2, 1, 1])
     c1.metric("Unit", f"{session.unit.serial}")
     c2.metric("Procedure", session.procedure or "—")
     c3.metric("Samples", f"{len(session.samples):,}")
-    c4.metric("Duration", common.format_duration(float(session.samples["t"].iloc[-1] - session.samples["t"].iloc[0])
+    c4.metric("Duration", ui.format_duration(float(session.samples["t"].iloc[-1] - session.samples["t"].iloc[0])
                                                  if len(session.samples) else 0.0))
     st.caption(f"{folder} · {session.sample_rate_hz:g} Hz · site latitude {session.site.latitude_deg:.4f}° · "
                f"rig {session.rig or '—'} · model {session.unit.model or '—'}")
@@ -132,13 +132,13 @@ with tab_browse:
     options = ["all steps", *[f"{s.index}: {s.kind} {s.label}".strip() for s in session.steps]]
     pick = st.selectbox("Step", options, key="sess.step")
     df = session.samples if pick == "all steps" else session.step_samples(int(pick.split(":")[0]))
-    triads = [k for k, (cols, _) in common.PLOT_UNITS.items() if all(c in df.columns for c in cols)]
+    triads = [k for k, (cols, _) in charts.PLOT_UNITS.items() if all(c in df.columns for c in cols)]
     extra = [c for c in ("temp", "table_angle", "table_rate") if c in df.columns]
     shown = st.multiselect("Show", [*triads, *extra], default=triads[:2], key="sess.show")
-    small = common.downsample(df, max_points=MAX_POINTS)
+    small = charts.downsample(df, max_points=MAX_POINTS)
     if len(small) < len(df):
         st.caption(f"{len(df):,} samples shown as a min/max envelope of {len(small):,} points.")
     for what in shown:
-        common.samples_chart(small, what)
+        charts.samples_chart(small, what)
     with st.expander("Manifest (session.json)"):
         st.json(json.loads(json.dumps(session.manifest(), default=str)))

@@ -7,7 +7,7 @@ Everything is computed by the library (``procedures/allan.py``); this page only 
 import pandas as pd
 import streamlit as st
 
-from dashboard import common
+from dashboard import forms, results, ui
 from workbench.registry import procedure
 
 TITLE = "Allan variance"
@@ -20,7 +20,7 @@ def _simulated():
 
     left, right = st.columns(2)
     with left:
-        grade = common.grade_picker(key="allan.grade")
+        grade = forms.grade_picker(key="allan.grade")
         seed = int(st.number_input("Seed", value=1, min_value=0, step=1, key="allan.seed"))
     with right:
         minutes = st.number_input("Hold duration (min)", value=30.0, min_value=2.0, max_value=720.0, step=10.0,
@@ -31,7 +31,7 @@ def _simulated():
     if grade is None or not st.button("Run on the simulated rig", type="primary", key="allan.run"):
         return None
     with st.spinner("recording and analysing..."):
-        seq = PROC.sequence(common.load_spec(grade), duration_s=float(minutes) * 60.0,
+        seq = PROC.sequence(forms.load_spec(grade), duration_s=float(minutes) * 60.0,
                             temperature_c=float(temperature), soak=soak)
         session, _ = simulate(seq, grade, seed=seed)
         hold = max(session.steps_of_kind("static"), key=lambda step: step.duration)
@@ -66,8 +66,8 @@ def main() -> None:
                "noise terms with model selection; 'not observed' terms show the upper bound the record allows.")
     source = st.radio("Data", ["Simulated rig", "Recorded session"], horizontal=True, key="allan.source")
     result = None
-    with common.guarded("allan", catch_all=True):
-        result = _simulated() if source == "Simulated rig" else common.result_picker(PROC.NAME, key="allan.pick")
+    with ui.guarded("allan", catch_all=True):
+        result = _simulated() if source == "Simulated rig" else results.result_picker(PROC.NAME, key="allan.pick")
     if result is not None:
         st.session_state["allan.result"] = result
     result = st.session_state.get("allan.result")
@@ -79,7 +79,7 @@ def main() -> None:
     st.subheader("Noise terms (lab units, 95 % intervals)")
     st.dataframe(pd.DataFrame(PROC.noise_terms_lab(result)), hide_index=True, use_container_width=True)
     st.text("\n".join(result.summary))
-    with common.guarded("allan.stat", catch_all=True):
+    with ui.guarded("allan.stat", catch_all=True):
         _statistic()
 
 

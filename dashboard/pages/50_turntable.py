@@ -1,7 +1,7 @@
 """Turntable calibration: run a multi-position / rate / Ferraris sequence, see the coefficients.
 
-Library calls only: the run is ``workbench run`` (``common.start_run``), the analysis the
-procedure's ``analyze`` (``common.result_picker``), the figures its ``figures`` (per-position
+Library calls only: the run is ``workbench run`` (``dashboard.jobs.start_run``), the analysis the
+procedure's ``analyze`` (``results.result_picker``), the figures its ``figures`` (per-position
 residuals before/after, compensated vs table rate, scale-factor error vs rate, turn checks).
 Numbers in lab units: mg, °/h, ppm, mrad, % of full scale, each with its 1-sigma.
 """
@@ -10,42 +10,40 @@ import numpy as np
 import pandas as pd
 import streamlit as st
 
-from dashboard import common
+from dashboard import forms, results, ui
+from workbench import units
 
 TITLE = "Turntable calibration"
 PROCEDURES = {"multiposition": "Multi-position static tumble (accel + gyro bias/g-sensitivity)",
               "rate": "Rate table (gyro scale factor, misalignment, nonlinearity, asymmetry)",
               "ferraris": "Ferraris: 6 positions + 3 turns (hand-made sessions)"}
-G_UNIT = {"accel": "mg", "gyro": "deg/h"}
-
-
-def _cell(value: float, unit: str, sigma: float) -> str:
-    return common.lab(value, unit, sigma) if np.isfinite(sigma) else "not observed"
 
 
 def coefficient_table(fit) -> pd.DataFrame:
-    """One row per coefficient of a TriadFit, in lab units with its 1-sigma ('not observed' if NaN)."""
-    rows = []
+    """One row per coefficient of a TriadFit, in the lab units of ``units.QUANTITIES`` with its 1-sigma
+    ('not observed' if NaN): bias, scale factor, misalignment, nonlinearity, asymmetry, g-sensitivity."""
+    t, rows = fit.triad, []
+
+    def cell(quantity: str, value: float, sigma: float) -> str:
+        return units.show(t, quantity, value, sigma) if np.isfinite(sigma) else "not observed"
+
     for i, a in enumerate("xyz"):
-        rows.append((f"bias {a}", _cell(fit.bias[i], G_UNIT[fit.triad], fit.bias_sigma[i])))
+        rows.append((f"bias {a}", cell("bias", fit.bias[i], fit.bias_sigma[i])))
     for i in range(3):
         for j in range(3):
             name = f"scale factor {'xyz'[i]}" if i == j else f"misalignment M{'xyz'[i]}{'xyz'[j]}"
-            unit = "ppm" if i == j else "mrad"
-            rows.append((name, _cell(fit.scale_misalignment[i, j], unit, fit.scale_misalignment_sigma[i, j])))
+            rows.append((name, cell("scale_factor" if i == j else "misalignment", fit.scale_misalignment[i, j],
+                                    fit.scale_misalignment_sigma[i, j])))
     for i, a in enumerate("xyz"):
         if np.isfinite(fit.nonlinearity_sigma[i]):
-            rows.append((f"nonlinearity {a} [1/SI]", f"{fit.nonlinearity[i]:.3g} ± {fit.nonlinearity_sigma[i]:.2g}"))
+            rows.append((f"nonlinearity {a}", cell("nonlinearity", fit.nonlinearity[i], fit.nonlinearity_sigma[i])))
         if np.isfinite(fit.asymmetry_sigma[i]):
-            rows.append((f"SF asymmetry {a}", _cell(fit.asymmetry[i], "ppm", fit.asymmetry_sigma[i])))
+            rows.append((f"SF asymmetry {a}", cell("scale_factor", fit.asymmetry[i], fit.asymmetry_sigma[i])))
     if fit.g_sensitivity is not None:
-        per_g = np.radians(1.0) / 3600.0 / 9.80665  # rad/s per m/s^2 in one °/h/g
         for i in range(3):
             for j in range(3):
-                s = fit.g_sensitivity_sigma[i, j]
-                rows.append((f"g-sensitivity G{'xyz'[i]}{'xyz'[j]} [°/h/g]",
-                             f"{fit.g_sensitivity[i, j] / per_g:.3g} ± {s / per_g:.2g}" if np.isfinite(s)
-                             else "not observed"))
+                rows.append((f"g-sensitivity G{'xyz'[i]}{'xyz'[j]}",
+                             cell("g_sensitivity", fit.g_sensitivity[i, j], fit.g_sensitivity_sigma[i, j])))
     return pd.DataFrame(rows, columns=["coefficient", "estimate ± 1σ"])
 
 
@@ -57,11 +55,11 @@ def residual_table(fit, full_scale=None) -> pd.DataFrame:
     out = pd.DataFrame({"step": r["step"], "label": r["label"], "used": r["used"]})
     for when in ("before", "after"):
         worst = np.abs(r[[f"{when}_x", f"{when}_y", f"{when}_z"]].to_numpy()).max(axis=1)
-        out[f"max |{when}| [{common.units.label(unit)}]"] = common.lab_array(worst, unit)
+        out[f"max |{when}| [{units.label(unit)}]"] = ui.lab_array(worst, unit)
         if full_scale:
             out[f"{when} [% FS]"] = worst / full_scale * 100
     if fit.triad == "accel":
-        out["| |a| - g | after [mg]"] = common.lab_array(np.abs(r["after_norm"].to_numpy()), "mg")
+        out["| |a| - g | after [mg]"] = ui.lab_array(np.abs(r["after_norm"].to_numpy()), "mg")
     return out
 
 
@@ -70,10 +68,10 @@ name = st.selectbox("Procedure", list(PROCEDURES), format_func=PROCEDURES.get, k
 tab_run, tab_result = st.tabs(["Run on the simulated rig", "Result of a session"])
 
 with tab_run:
-    common.run_panel(name, "tt", "turntable run")
+    forms.run_panel(name, "tt", "turntable run")
 
 with tab_result:
-    result = common.result_picker(name, key="tt.result")
+    result = results.result_picker(name, key="tt.result")
     if result is not None and isinstance(result.payload, dict):
         fs = result.payload.get("full_scale")
         for triad in ("accel", "gyro"):
@@ -95,4 +93,4 @@ with tab_result:
                                         "motion before/after [°]": f"{np.degrees(c.motion_before):.3f} / "
                                                                    f"{np.degrees(c.motion_after):.3f}"}
                                        for c in turns]), hide_index=True)
-        common.show_result(result)
+        results.show_result(result)

@@ -1,7 +1,7 @@
 """North-finding: run a maytagging / Earth-rate / redundant / carousel sequence, see the azimuth.
 
-Library calls only: the run is ``workbench run`` (``common.start_run``), the analysis the
-procedure's ``analyze`` (``common.result_picker``), the figures its ``figures``; several
+Library calls only: the run is ``workbench run`` (``dashboard.jobs.start_run``), the analysis the
+procedure's ``analyze`` (``results.result_picker``), the figures its ``figures``; several
 sessions are compared with ``northfinding.sequence_table`` / ``pairing_table`` (thesis tables
 4.3, 4.4). Numbers in lab units (°, mrad, °/h), achieved beside theoretical.
 """
@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 import streamlit as st
 
-from dashboard import common
+from dashboard import forms, results, ui
 from workbench import registry
 
 TITLE = "North-finding"
@@ -21,16 +21,16 @@ PROCEDURES = {"maytagging": "Maytagging (±180°, thesis seq. 1-7)", "earth-rate
 def numbers(result) -> pd.DataFrame:
     """Achieved and theoretical figures of one result (lab units)."""
     r, th = result.result, result.result["theory"]
-    rows = [("azimuth of body x at table zero", f"{r['azimuth_deg']:.4f} °",
-             f"± {r['azimuth_sigma_mrad']:.3g} mrad (1σ)"),
+    rows = [("azimuth of body x at table zero", f"{r['azimuth_deg']:.4f} ± {r['azimuth_sigma_mrad'] * 0.18 / np.pi:.2g}°",
+             f"1σ = {r['azimuth_sigma_mrad']:.3g} mrad"),
             (f"per-{r['units']} std", f"{r['pair_std_mrad']:.3g} mrad" if r["pair_std_mrad"] is not None else "—",
              f"theory: ARW {th['arw_pair_sigma_mrad'] or float('nan'):.3g} mrad, "
              f"Allan {th['allan_pair_sigma_mrad'] or float('nan'):.3g} mrad ({th['source']})"),
-            ("horizontal Earth rate", common.lab(r["earth_rate_amplitude"] if r["earth_rate_amplitude"] is not None
+            ("horizontal Earth rate", ui.lab(r["earth_rate_amplitude"] if r["earth_rate_amplitude"] is not None
                                                  else np.nan, "deg/h", r["earth_rate_amplitude_sigma"]),
-             f"Ω_e cos(lat) = {common.lab(r['earth_rate_expected'], 'deg/h')}")]
+             f"Ω_e cos(lat) = {ui.lab(r['earth_rate_expected'], 'deg/h')}")]
     for axis, b, s in zip("xyz", r["gyro_bias"], r["gyro_bias_sigma"]):
-        rows.append((f"gyro bias {axis}", common.lab(np.nan if b is None else b, "deg/h",
+        rows.append((f"gyro bias {axis}", ui.lab(np.nan if b is None else b, "deg/h",
                                                      None if s is None else s), ""))
     if "azimuth_error_mrad" in r:
         rows.append(("error against the table's known zero", f"{r['azimuth_error_mrad']:+.3g} mrad", ""))
@@ -47,25 +47,25 @@ with tab_run:
         if hasattr(proc, "applies") and not proc.applies(spec):
             st.warning(f"{spec.name}: the gyros do not resolve the Earth rate (pair 1σ > 0.1 rad)")
 
-    common.run_panel(name, "nf", "north-finding run", _applies)
+    forms.run_panel(name, "nf", "north-finding run", _applies)
 
 with tab_result:
-    result = common.result_picker(name, key="nf.result")
+    result = results.result_picker(name, key="nf.result")
     if result is not None:
         st.dataframe(numbers(result), hide_index=True, width="stretch")
-        common.show_result(result)
+        results.show_result(result)
 
 with tab_compare:
     st.markdown("Several sessions of the same procedure: mean per session and repeatability "
                 "(thesis table 4.3 and Fig. 4.14-4.15; for the redundant configuration table 4.4).")
-    dirs = common.session_dirs(name)
+    dirs = results.session_dirs(name)
     chosen = st.multiselect("Sessions", list(dirs), key="nf.compare")
     if len(chosen) >= 2:
-        with common.guarded("comparison", catch_all=True):
+        with ui.guarded("comparison", catch_all=True):
             from workbench.analysis import northfinding as nfm
             from workbench.plots.northfinding import repeatability_figure
 
-            payloads = [common.analyze_session(name, dirs[c]).payload for c in chosen]
+            payloads = [results.analyze_session(name, dirs[c]).payload for c in chosen]
             rows = nfm.sequence_table(payloads, [str(i + 1) for i in range(len(payloads))])
             st.dataframe(pd.DataFrame(rows), hide_index=True)
             st.pyplot(repeatability_figure(rows), clear_figure=True)

@@ -1,6 +1,6 @@
 """Navigation: replay a session through the ZUPT alignment or the AHRS, raw vs calibrated.
 
-Library calls only: runs are ``workbench run`` (``common.start_run``; on the simulated rig it
+Library calls only: runs are ``workbench run`` (``dashboard.jobs.start_run``; on the simulated rig it
 calibrates the unit first), the analysis is the procedure's ``analyze`` with a calibration set
 from the store, the figures its ``figures``. Numbers in lab units (°, mm/s, °/h), raw beside
 calibrated.
@@ -9,7 +9,7 @@ calibrated.
 import pandas as pd
 import streamlit as st
 
-from dashboard import common
+from dashboard import forms, jobs, results, ui
 
 TITLE = "Navigation"
 PROCEDURES = {"zupt-alignment": "ZUPT fine alignment (thesis ch. 3)", "ahrs-table": "AHRS on the table (paper 004)"}
@@ -27,7 +27,7 @@ def numbers(result) -> pd.DataFrame:
     c = [result.result[m]["convergence_time_s"] for m in ("raw", "calibrated")]
     rows.append(("convergence time", *("never" if x is None else f"{x:.0f} s" for x in c)))
     for i, axis in enumerate("xyz"):
-        rows.append((f"gyro-bias error {axis}", *(common.lab(result.result[m]["gyro_bias_error"][i], "deg/h",
+        rows.append((f"gyro-bias error {axis}", *(ui.lab(result.result[m]["gyro_bias_error"][i], "deg/h",
                                                              result.result[m]["gyro_bias_sigma"][i])
                                                   for m in ("raw", "calibrated"))))
     return pd.DataFrame(rows, columns=["quantity", "raw", "calibrated"])
@@ -40,34 +40,34 @@ tab_run, tab_result, tab_runs = st.tabs(["Run", "Analyse a session", "Finished r
 with tab_run:
     st.caption("On the simulated rig the run first calibrates the unit with the calibration procedures, "
                "then records and analyses the validation sequence.")
-    common.run_panel(name, "nav", "navigation run")
+    forms.run_panel(name, "nav", "navigation run")
 
 with tab_result:
-    folder = common.session_picker(name, key="nav.session")
+    folder = results.session_picker(name, key="nav.session")
     sets = []
-    with common.guarded("store"):
-        sets = common.store().list_sets()
+    with ui.guarded("store"):
+        sets = ui.store().list_sets()
     labels = {f"{s.serial} v{s.version} · {s.created} · {s.id[:8]}": s.id for s in sets}
     choice = st.selectbox("Calibration set", list(labels) or ["(no set in the store)"], key="nav.set")
     force = st.checkbox("Use a set of another unit (force)", key="nav.force")
     if folder is not None and choice in labels and st.button("Analyse", key="nav.analyse"):
-        with common.guarded(f"{name} on {folder}", catch_all=True):
+        with ui.guarded(f"{name} on {folder}", catch_all=True):
             from workbench import registry
             from workbench.session import load_session
 
             with st.spinner("Replaying the session through the filters ..."):
                 result = registry.procedure(name).analyze(
-                    load_session(folder), calibration=common.store().get_set(labels[choice]), force=force)
+                    load_session(folder), calibration=ui.store().get_set(labels[choice]), force=force)
             st.dataframe(numbers(result), hide_index=True, width="stretch")
-            common.show_result(result)
+            results.show_result(result)
 
 with tab_runs:
-    runs = [f for f in common.list_runs() if common.run_status(f).job.get("procedure") == name]
+    runs = [f for f in jobs.list_runs() if jobs.run_status(f).job.get("procedure") == name]
     if not runs:
         st.info(f"No {name} run yet: start one in the Run tab.")
     else:
         pick = st.selectbox("Run", [r.name for r in runs], key="nav.runpick")
-        common.show_result(next(r for r in runs if r.name == pick))
+        results.show_result(next(r for r in runs if r.name == pick))
 
 from dashboard.land_navigation import land_navigation_section  # noqa: E402
 

@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 import streamlit as st
 
-from dashboard import auth, common
+from dashboard import auth, ui
 from workbench import coefficients, registry
 from workbench.diff import NOT_OBSERVED, NOT_OBSERVED_A, NOT_OBSERVED_B, diff_sets
 from workbench.errors import ExportError, WorkbenchError
@@ -66,10 +66,10 @@ def _highlight(value: float) -> str:
 
 st.title("Calibration sets")
 try:
-    db = common.store()
+    db = ui.store()
     unit_list = db.units()
 except WorkbenchError as exc:
-    common.show_error(exc, "store")
+    ui.show_error(exc, "store")
     st.stop()
 if not unit_list:
     st.info("No units in the store yet.")
@@ -96,7 +96,7 @@ with tab_show:
     try:
         calset = db.get_set(info.id)
     except WorkbenchError as exc:
-        common.show_error(exc)
+        ui.show_error(exc)
         st.stop()
     st.caption(f"Set {calset.id} · created {calset.created} · procedures {', '.join(calset.provenance.procedures)} "
                f"· software {calset.provenance.software_version}")
@@ -120,7 +120,7 @@ with tab_show:
                 db.approve(calset.id, by.strip(), comment)
                 st.rerun()
             except WorkbenchError as exc:
-                common.show_error(exc, "approve")
+                ui.show_error(exc, "approve")
 
     st.subheader("Download")
     exporters = registry.exporters()
@@ -135,7 +135,7 @@ with tab_show:
                 st.warning(f"{fmt} ({mod.SUFFIX}) not available: {exc}")
                 continue
             except Exception as exc:  # noqa: BLE001 - one exporter's failure leaves the others usable
-                common.show_error(exc, f"export {fmt}")
+                ui.show_error(exc, f"export {fmt}")
                 continue
             st.download_button(f"{fmt} ({mod.SUFFIX})", out.text, file_name=f"{serial}_v{version}{mod.SUFFIX}",
                                help=getattr(mod, "DESCRIPTION", fmt), key=f"cal.dl.{fmt}")
@@ -154,7 +154,7 @@ with tab_diff:
         try:
             table = diff_table(db.get_set(by_version[old_v].id), db.get_set(by_version[new_v].id))
         except WorkbenchError as exc:
-            common.show_error(exc, "diff")
+            ui.show_error(exc, "diff")
             table = None
         if table is not None and table.empty:
             st.success("The two versions have identical coefficients.")

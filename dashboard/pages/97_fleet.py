@@ -4,7 +4,7 @@ import numpy as np
 import pandas as pd
 import streamlit as st
 
-from dashboard import common
+from dashboard import ui
 from workbench.errors import WorkbenchError
 from workbench.fleet.stats import OUTLIER_Z, coefficient_stats
 
@@ -24,14 +24,14 @@ def _display_unit(triad: str, field: str, index: tuple) -> str:
 
 
 def _to_lab(value_si: float, unit: str) -> float:
-    return float(common.lab_array(value_si, unit))
+    return float(ui.lab_array(value_si, unit))
 
 
 try:
-    db = common.store()
+    db = ui.store()
     units = db.units()
 except WorkbenchError as exc:
-    common.show_error(exc, "store")
+    ui.show_error(exc, "store")
     st.stop()
 
 models = sorted({m for _, m in units if m})
@@ -39,7 +39,7 @@ if not models:
     st.info("No units in the store yet: run a procedure or `workbench batch` first.")
     st.stop()
 grade = st.selectbox("Grade", models, key="fleet_grade")
-with common.guarded("fleet statistics"):
+with ui.guarded("fleet statistics"):
     sets = [c for c in (db.latest(s) for s, m in units if m == grade) if c is not None]
     rows = coefficient_stats(sets)
     st.metric("Units with a calibration set", len(sets))

@@ -25,15 +25,24 @@ def _fit(triad: str, bias_lab: float, bias_unit: str, observed_m: bool = True, *
 
 def test_gyro_lines_in_lab_units():
     lines = _fit("gyro", 1.5, "deg/h").summary()
-    assert lines[0] == "gyro bias: x 1.5 °/h ± 0.15 °/h, y -1.5 °/h ± 0.15 °/h, z 3 °/h ± 0.15 °/h"
-    assert lines[1] == "gyro scale factor: x 100 ppm ± 10 ppm, y -200 ppm ± 10 ppm, z 300 ppm ± 10 ppm"
+    assert lines[0] == "gyro bias: x 1.5 ± 0.15 °/h, y -1.5 ± 0.15 °/h, z 3 ± 0.15 °/h"  # one unit per figure
+    assert lines[1] == "gyro scale factor: x 100 ± 10 ppm, y -200 ± 10 ppm, z 300 ± 10 ppm"
     assert lines[2] == "gyro misalignment: largest |M_ij| 0.5 mrad, largest sigma 0.01 mrad"
     assert not any("nonlinearity" in line for line in lines)  # not observed: not listed
 
 
 def test_accel_bias_in_mg_and_unobserved_scale_left_out():
     lines = _fit("accel", 2.0, "mg", observed_m=False).summary()
-    assert lines == ["accel bias: x 2 mg ± 0.2 mg, y -2 mg ± 0.2 mg, z 4 mg ± 0.2 mg"]
+    assert lines == ["accel bias: x 2 ± 0.2 mg, y -2 ± 0.2 mg, z 4 ± 0.2 mg"]
+
+
+@pytest.mark.parametrize("triad,unit,label", [("gyro", "ppm/(deg/s)", "ppm/(°/s)"), ("accel", "ug/g^2", "µg/g²")])
+def test_nonlinearity_in_lab_units_not_si(triad, unit, label):
+    fit = _fit(triad, 1.0, "deg/h" if triad == "gyro" else "mg")
+    fit = TriadFit(fit.triad, fit.bias, fit.scale_misalignment, np.array([0.5, 0.0, -2.0]) * factor(unit), None,
+                   fit.bias_sigma, fit.scale_misalignment_sigma, np.array([0.05, 0.05, np.nan]) * factor(unit), None)
+    (line,) = [line for line in fit.summary() if "nonlinearity" in line]
+    assert line == f"{triad} nonlinearity: x 0.5 ± 0.05 {label}, y 0 ± 0.05 {label}"  # z not observed: left out
 
 
 def test_residual_line_and_percent_of_full_scale():

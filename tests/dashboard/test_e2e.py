@@ -21,7 +21,7 @@ from pathlib import Path
 
 import pytest
 
-from dashboard.common import lab_label
+from dashboard.ui import lab_label
 
 pytestmark = pytest.mark.e2e
 

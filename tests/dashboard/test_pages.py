@@ -129,7 +129,7 @@ def fake_run(seeded_db, tmp_path, monkeypatch):
     """Procedures ``ok``, ``fails`` (fails mid-run) and ``broken`` (bad sequence); one grade; the fake CLI."""
     import sys
 
-    from dashboard import common
+    from dashboard import forms, jobs
     from workbench import registry
 
     procs = {"ok": _fake_procedure("ok"), "fails": _fake_procedure("fails"), "slow": _fake_procedure("slow"),
@@ -138,9 +138,9 @@ def fake_run(seeded_db, tmp_path, monkeypatch):
     grades = tmp_path / "grades"
     grades.mkdir()
     (grades / "test_grade.yaml").write_text("name: test_grade\n")
-    monkeypatch.setattr(common, "UNITS_DIR", grades)
-    monkeypatch.setattr(common, "load_spec", lambda path: None)
-    monkeypatch.setattr(common, "_workbench_cli", lambda: [sys.executable, str(Path(__file__).with_name(
+    monkeypatch.setattr(forms, "UNITS_DIR", grades)
+    monkeypatch.setattr(forms, "load_spec", lambda path: None)
+    monkeypatch.setattr(jobs, "_workbench_cli", lambda: [sys.executable, str(Path(__file__).with_name(
         "fake_workbench.py"))])
     return procs
 
@@ -148,12 +148,12 @@ def fake_run(seeded_db, tmp_path, monkeypatch):
 def _wait_for_end(folder: Path, timeout_s: float = 30.0) -> None:
     import time
 
-    from dashboard import common
+    from dashboard import jobs
 
     t0 = time.monotonic()
-    while (folder / common.EXIT_FILE).exists() is False and time.monotonic() - t0 < timeout_s:
+    while (folder / jobs.EXIT_FILE).exists() is False and time.monotonic() - t0 < timeout_s:
         time.sleep(0.1)
-    assert (folder / common.EXIT_FILE).exists(), f"fake run in {folder} did not end in {timeout_s} s"
+    assert (folder / jobs.EXIT_FILE).exists(), f"fake run in {folder} did not end in {timeout_s} s"
 
 
 def test_run_page_previews_sequence_and_runs(fake_run):
@@ -176,7 +176,7 @@ def test_run_page_previews_sequence_and_runs(fake_run):
     assert job["options"] == {"dwell_s": 20.0} and "--option" in job["command"]
 
 
-def test_run_page_run_failing_mid_run_shows_log_and_stores_nothing(fake_run, seeded_db):
+def test_run_page_run_failing_mid_run_shows_its_error_and_stores_nothing(fake_run, seeded_db):
     at = page("20_run.py")
     at.selectbox(key="run.procedure").select("fails").run()
     at.button(key="run.start").click().run()
@@ -184,8 +184,9 @@ def test_run_page_run_failing_mid_run_shows_log_and_stores_nothing(fake_run, see
     _wait_for_end(folder)
     at.run()
     assert not at.exception
-    assert any("failed (exit code 2)" in e for e in texts(at, "error"))
-    assert any("is not static" in c.value for c in at.code)
+    (error,) = [e for e in texts(at, "error") if "failed (exit code 2)" in e]
+    assert "after 1 of 3 steps" in error  # from the runner's step log, not from the CLI's output
+    assert error.endswith("step 0 (static): gyro norm 0.8 rad/s is not static")  # the CLI's one-line error
     assert len(seeded_db.list_sets()) == 2 and seeded_db.list_sessions() == []
 
 
@@ -197,10 +198,10 @@ def test_run_page_stop_a_run(fake_run):
     at.button(key="run.start").click().run()
     folder = Path(at.session_state["run.folder"])
     # while it records: the progress bar counts steps and the partial plots show the recorded parts
-    from dashboard import common
+    from dashboard import jobs
 
     t0 = time.monotonic()
-    while common.run_status(folder).steps_done < 1 and time.monotonic() - t0 < 15:
+    while jobs.run_status(folder).steps_done < 1 and time.monotonic() - t0 < 15:
         time.sleep(0.1)
     at.run()
     (bar,) = at.get("progress")
@@ -227,21 +228,21 @@ def test_run_page_bad_sequence_is_a_readable_error(fake_run):
 def test_run_status_progress_while_running(fake_run):
     import time
 
-    from dashboard import common
+    from dashboard import forms, jobs
 
-    folder = common.start_run("ok", next(iter(common.unit_grades().values())), seed=3)
+    folder = jobs.start_run("ok", next(iter(forms.unit_grades().values())), seed=3)
     seen = []
-    while not (folder / common.EXIT_FILE).exists():
-        s = common.run_status(folder)
+    while not (folder / jobs.EXIT_FILE).exists():
+        s = jobs.run_status(folder)
         seen.append((s.state, s.progress))
         time.sleep(0.05)
-    final = common.run_status(folder)
+    final = jobs.run_status(folder)
     assert final.state == "done" and final.progress == 1.0 and final.steps_done == 3
     # progress while running is the recorded share of the planned rig time: 0, 1/3, 2/3, or 0.99 once
     # every step is recorded but the process (the analysis) has not ended
     running = {round(p, 3) for st_, p in seen if st_ == "running" and p is not None}
     assert running <= {0.0, 0.333, 0.667, 0.99} and running & {0.333, 0.667}
-    parts = common.partial_samples(final.session_dir)
+    parts = jobs.partial_samples(final.session_dir)
     assert parts is None or len(parts) > 0
 
 
@@ -342,7 +343,7 @@ def test_downsample_keeps_extremes_and_bounds_points():
     import numpy as np
     import pandas as pd
 
-    from dashboard.common import downsample
+    from dashboard.charts import downsample
 
     # 4 h at 100 Hz with one spike: the envelope must keep the spike and stay under max_points
     n = 4 * 3600 * 100
@@ -355,10 +356,10 @@ def test_downsample_keeps_extremes_and_bounds_points():
 
 # -- helpers the analysis pages use: result_picker / show_result -------------------------------
 ANALYSIS_PAGE = """
-from dashboard import common
-result = common.result_picker("toy", key="toy")
+from dashboard import results
+result = results.result_picker("toy", key="toy")
 if result is not None:
-    common.show_result(result)
+    results.show_result(result)
 """
 
 
@@ -372,7 +373,7 @@ def toy_procedure(stored_session, monkeypatch):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from dashboard import common
+    from dashboard import ui
     from workbench import registry
     from workbench.errors import AnalysisError
     from workbench.procedure import ProcedureResult
@@ -382,7 +383,7 @@ def toy_procedure(stored_session, monkeypatch):
             raise AnalysisError(f"{session.name}: step 1 (static): not enough samples for the toy fit")
         mean = float(session.gyro()[:, 0].mean())
         return ProcedureResult("toy", {"gyro_x_mean": mean}, payload=mean,
-                               summary=[f"gyro x mean: {common.lab(mean, 'deg/h', 1e-6)}"], warnings=["toy warning"])
+                               summary=[f"gyro x mean: {ui.lab(mean, 'deg/h', 1e-6)}"], warnings=["toy warning"])
 
     def figures(result):
         fig, ax = plt.subplots()
@@ -392,7 +393,7 @@ def toy_procedure(stored_session, monkeypatch):
     toy = SimpleNamespace(NAME="toy", TITLE="toy", DEFAULTS={"fail": False}, analyze=analyze, figures=figures,
                           sequence=None)
     monkeypatch.setattr(registry, "procedures", lambda: {"toy": toy})
-    stored = common.store()
+    stored = ui.store()
     stored.add_session("sess-toy", "DASH-001", "test-imu", "toy", str(stored_session), n_steps=2)
     return toy
 
@@ -420,9 +421,9 @@ def test_result_picker_without_procedure(seeded_db):
 
 
 def test_overview_lists_units_sessions_and_runs(fake_run, stored_session):
-    from dashboard import common
+    from dashboard import forms, jobs
 
-    folder = common.start_run("ok", next(iter(common.unit_grades().values())))
+    folder = jobs.start_run("ok", next(iter(forms.unit_grades().values())))
     _wait_for_end(folder)
     at = page("10_overview.py")
     assert not at.exception and not at.error
@@ -434,9 +435,9 @@ def test_overview_lists_units_sessions_and_runs(fake_run, stored_session):
 
 
 def test_run_page_in_app_links_to_calibration_sets(fake_run):
-    from dashboard import common
+    from dashboard import forms, jobs
 
-    _wait_for_end(common.start_run("ok", next(iter(common.unit_grades().values()))))
+    _wait_for_end(jobs.start_run("ok", next(iter(forms.unit_grades().values()))))
     at = AppTest.from_file(str(REPO / "app.py"), default_timeout=TIMEOUT).run()
     at.switch_page("dashboard/pages/20_run.py").run()
     assert not at.exception
@@ -444,7 +445,7 @@ def test_run_page_in_app_links_to_calibration_sets(fake_run):
 
 
 def test_lab_labels_carry_the_lab_unit():
-    from dashboard.common import lab_label
+    from dashboard.ui import lab_label
 
     assert lab_label("gyro_bias_instability_deg_h") == "gyro bias instability (°/h)"
     assert lab_label("settle_tol_c_per_min") == "settle tol (°C/min)"
@@ -455,13 +456,13 @@ def test_lab_labels_carry_the_lab_unit():
 
 def test_result_picker_opens_the_stored_result_and_reanalyses_only_on_request(toy_procedure, stored_session):
     """A session with a stored result shows that result (summary, options, stored figures), not a re-analysis."""
-    from dashboard import common
+    from dashboard import ui
 
     (stored_session.parent / "figures").mkdir(exist_ok=True)
     (stored_session.parent / "figures" / "toy_mean.png").write_bytes(bytes.fromhex(
         "89504e470d0a1a0a0000000d4948445200000001000000010806000000"
         "1f15c4890000000d49444154789c6360000002000154a24f5d0000000049454e44ae426082"))
-    common.store().add_result("toy", "sess-0001", "DASH-001", {"procedure": "toy", "summary": ["stored: 7 °/h"],
+    ui.store().add_result("toy", "sess-0001", "DASH-001", {"procedure": "toy", "summary": ["stored: 7 °/h"],
                                                                "options": {"fail": False}, "warnings": []})
     calls = []
     analyze = toy_procedure.analyze
@@ -477,4 +478,4 @@ def test_result_picker_opens_the_stored_result_and_reanalyses_only_on_request(to
     assert not at.exception and len(calls) == 1
     assert any("gyro x mean" in c.value for c in at.code)
     assert any("(not stored)" in i for i in texts(at, "info"))
-    assert len(common.store().list_results("toy")) == 1  # the re-analysis stored nothing
+    assert len(ui.store().list_results("toy")) == 1  # the re-analysis stored nothing

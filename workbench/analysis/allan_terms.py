@@ -10,12 +10,10 @@ import math
 
 from workbench import units
 
-TERM_UNITS = {
-    "gyro": {"quantization": "arcsec", "white": "deg/sqrt(h)", "bias_instability": "deg/h", "rrw": "deg/h/sqrt(h)",
-             "rate_ramp": "deg/h/h"},
-    "accel": {"quantization": "m/s", "white": "ug/sqrt(Hz)", "bias_instability": "ug", "rrw": "m/s/h/sqrt(h)",
-              "rate_ramp": "m/s^3"},
-}
+# Allan term -> its quantity in units.QUANTITIES (one vocabulary with the CLI, dashboard and certificate)
+_VOCABULARY = {"quantization": "quantization", "white": "white", "bias_instability": "bias_instability",
+               "rrw": "rrw", "rate_ramp": "rate_ramp"}
+TERM_UNITS = {triad: {term: units.unit_of(triad, q) for term, q in _VOCABULARY.items()} for triad in ("gyro", "accel")}
 TERM_LABELS = {"quantization": "Q", "white": "N", "bias_instability": "B", "rrw": "K", "rate_ramp": "R"}
 
 

@@ -68,8 +68,8 @@ def to_result(nf: NorthFinding) -> tuple[dict, list[str]]:
             {"pairing_deg": lab, "mean_deg": float(np.degrees(wrap_2pi(m))), "std_mrad": _json_num(s * 1e3),
              "n": int(d.azimuth.shape[0])} for lab, m, s in zip(d.pairings, d.mean, d.std)]}
     summary = [
-        f"azimuth of body x at table zero: {res['azimuth_deg']:.4f}° ± {nf.azimuth_sigma * 1e3:.3g} mrad (1σ, "
-        f"{len(nf.unit_azimuth)} {nf.units}s)",
+        f"azimuth of body x at table zero: {res['azimuth_deg']:.4f} ± {np.degrees(nf.azimuth_sigma):.2g}° (1σ = "
+        f"{nf.azimuth_sigma * 1e3:.3g} mrad, {len(nf.unit_azimuth)} {nf.units}s)",
         f"per-{nf.units} std: {nf.unit_std * 1e3:.3g} mrad; theory {th['arw_unit_sigma'] * 1e3:.3g} mrad (ARW only), "
         f"{th['allan_unit_sigma'] * 1e3:.3g} mrad (ADEV at {th['tau']:.0f} s; {th['source']})",
         f"horizontal Earth rate: {fmt(nf.earth_rate_amplitude, 'deg/h')} "

@@ -19,45 +19,43 @@ if TYPE_CHECKING:
 
 
 def triad_summary(fit: TriadFit, full_scale: float | None = None) -> list[str]:
-    """Lines for people in lab units: bias (mg or °/h), scale factor (ppm), misalignment (mrad),
-    nonlinearity and residuals before/after (mg, or °/s and % of ``full_scale`` (rad/s) for a rate fit).
-
-    Only observed coefficients (finite sigma) are listed.
+    """Lines for people in the lab units of :data:`workbench.units.QUANTITIES`: bias (mg or °/h),
+    scale factor and asymmetry (ppm), misalignment (mrad), nonlinearity (µg/g² or ppm/(°/s)),
+    g-sensitivity (°/h/g), residuals before/after (mg, or °/s and % of ``full_scale`` (rad/s) for a
+    rate fit). One unit per figure (``x 2.355 ± 0.2 mg``); only observed coefficients (finite sigma).
     """
     acc = fit.triad == "accel"
-    b_unit = "mg" if acc else "deg/h"
-
-    def pm(v, s, unit, digits=4):
-        return f"{units.fmt(v, unit, digits)} ± {units.fmt(s, unit, 2)}"
-
     t = fit.triad
+
+    def per_axis(quantity: str, values, sigmas, digits: int = 4) -> str:
+        return ", ".join(f"{a} {units.show(t, quantity, v, s, digits)}"
+                         for a, v, s in zip("xyz", values, sigmas) if np.isfinite(s))
+
     lines = []
     if np.isfinite(fit.bias_sigma).any():
-        lines.append(f"{t} bias: " + ", ".join(f"{a} {pm(v, s, b_unit)}"
-                                               for a, v, s in zip("xyz", fit.bias, fit.bias_sigma)))
+        lines.append(f"{t} bias: " + per_axis("bias", fit.bias, fit.bias_sigma))
     d, ds = np.diag(fit.scale_misalignment), np.diag(fit.scale_misalignment_sigma)
     if np.isfinite(ds).any():
-        lines.append(f"{t} scale factor: " + ", ".join(f"{a} {pm(v, s, 'ppm', 5)}" for a, v, s in zip("xyz", d, ds)))
+        lines.append(f"{t} scale factor: " + per_axis("scale_factor", d, ds, 5))
         off = ~np.eye(3, dtype=bool)
         worst = np.abs(fit.scale_misalignment[off]).max()
-        lines.append(f"{t} misalignment: largest |M_ij| {units.fmt(worst, 'mrad', 3)}, "
-                     f"largest sigma {units.fmt(np.nanmax(fit.scale_misalignment_sigma[off]), 'mrad', 2)}")
+        mis = units.unit_of(t, "misalignment")
+        lines.append(f"{t} misalignment: largest |M_ij| {units.fmt(worst, mis, 3)}, "
+                     f"largest sigma {units.fmt(np.nanmax(fit.scale_misalignment_sigma[off]), mis, 2)}")
     if np.isfinite(fit.nonlinearity_sigma).any():
-        lines.append(f"{t} nonlinearity (1/SI): " + ", ".join(
-            f"{a} {v:.3g} ± {s:.2g}" for a, v, s in zip("xyz", fit.nonlinearity, fit.nonlinearity_sigma)
-            if np.isfinite(s)))
+        lines.append(f"{t} nonlinearity: " + per_axis("nonlinearity", fit.nonlinearity, fit.nonlinearity_sigma, 3))
     if np.isfinite(fit.asymmetry_sigma).any():
-        lines.append(f"{t} scale-factor asymmetry (SF+ - SF-)/2: " + ", ".join(
-            f"{a} {pm(v, s, 'ppm', 3)}" for a, v, s in zip("xyz", fit.asymmetry, fit.asymmetry_sigma)))
+        lines.append(f"{t} scale-factor asymmetry (SF+ - SF-)/2: "
+                     + per_axis("scale_factor", fit.asymmetry, fit.asymmetry_sigma, 3))
     if fit.g_sensitivity is not None and np.isfinite(fit.g_sensitivity_sigma).any():
-        gs = units.factor("deg/h") / units.factor("g")
-        lines.append(f"{t} g-sensitivity: largest |G_ij| {np.abs(fit.g_sensitivity).max() / gs:.3g} °/h/g "
-                     f"(largest sigma {np.nanmax(fit.g_sensitivity_sigma) / gs:.2g} °/h/g)")
+        gs = units.unit_of(t, "g_sensitivity")
+        lines.append(f"{t} g-sensitivity: largest |G_ij| {units.fmt(np.abs(fit.g_sensitivity).max(), gs, 3)} "
+                     f"(largest sigma {units.fmt(np.nanmax(fit.g_sensitivity_sigma), gs, 2)})")
     r = fit.residuals[fit.residuals["used"]] if len(fit.residuals) else fit.residuals
     if len(r):
         before = np.abs(r[["before_x", "before_y", "before_z"]].to_numpy()).max()
         after = np.abs(r[["after_x", "after_y", "after_z"]].to_numpy()).max()
-        res_unit = "mg" if acc else "deg/s"
+        res_unit = units.unit_of(t, "residual")
         line = (f"{t} max residual per step: before {units.fmt(before, res_unit, 3)}, "
                 f"after {units.fmt(after, res_unit, 3)}")
         if full_scale:

@@ -24,8 +24,42 @@ app = typer.Typer(no_args_is_help=True, add_completion=False, pretty_exceptions_
 # markup off: user text (serials, labels, file names, messages) is printed as it is, never parsed as
 # Rich markup; styled labels are passed as Text (see :func:`styled`). No automatic highlighting:
 # digits inside paths and ids are not numbers to colour.
-err = Console(stderr=True, markup=False, highlight=False)
-out = Console(markup=False, highlight=False)
+
+
+def wrap_words(text: Text, width: int) -> Text:
+    """``text`` with its lines broken at spaces only, to ``width`` columns where a word allows: a path
+    or id longer than ``width`` stays whole on a line of its own (styles kept)."""
+    pieces, start = [], 0
+    plain = text.plain
+    for paragraph in plain.split("\n"):
+        end_par = start + len(paragraph)
+        line_start, last_space, pos = start, None, start
+        while pos < end_par:
+            if plain[pos] == " ":
+                last_space = pos
+            if pos - line_start >= width and last_space is not None and last_space > line_start:
+                pieces.append(text[line_start:last_space])
+                line_start, last_space = last_space + 1, None
+            pos += 1
+        pieces.append(text[line_start:end_par])
+        start = end_par + 1
+    return Text("\n").join(pieces)
+
+
+class _Console(Console):
+    """Lines wrap between words only: a path or id longer than the terminal stays whole (never
+    folded mid-path), so it can be copied; tables still fit the width."""
+
+    def print(self, *objects, sep: str = " ", **kwargs) -> None:  # type: ignore[override]
+        if objects and all(isinstance(o, (str, Text)) for o in objects) and not kwargs.get("soft_wrap"):
+            text = Text(sep).join(o if isinstance(o, Text) else Text(o) for o in objects)
+            super().print(wrap_words(text, self.width), overflow="ignore", crop=False, **kwargs)
+            return
+        super().print(*objects, sep=sep, **kwargs)
+
+
+err = _Console(stderr=True, markup=False, highlight=False)
+out = _Console(markup=False, highlight=False)
 
 
 def styled(tag: str, style: str, rest: str = "") -> Text:

@@ -64,7 +64,8 @@ def azimuth_figure(nf: NorthFinding):
     ax.set_xlabel("time [min]")
     ax.set_ylabel("azimuth − mean [mrad]")
     err = "" if nf.azimuth_error is None else f", error {nf.azimuth_error * 1e3:+.2f} mrad"
-    ax.set_title(f"{nf.method}: azimuth {np.degrees(wrap_2pi(nf.azimuth)):.3f}° ± {nf.azimuth_sigma * 1e3:.2f} mrad{err}")
+    ax.set_title(f"{nf.method}: azimuth {np.degrees(wrap_2pi(nf.azimuth)):.3f} ± {np.degrees(nf.azimuth_sigma):.2g}° "
+                 f"(1σ = {nf.azimuth_sigma * 1e3:.2f} mrad){err}")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     return fig

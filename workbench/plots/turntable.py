@@ -120,14 +120,19 @@ def plot_turn_checks(checks: list):
              "motion before", "motion after"]
     fig, ax = plt.subplots(figsize=(9, 4.5), layout="constrained")
     width = 0.8 / max(1, len(checks))
+    top, bottom = 1e-3, 0.0  # ° (the symlog threshold): limits from the largest bar either way
     for k, c in enumerate(checks):
-        vals = [abs(c.angle) - np.linalg.norm(c.nominal), c.closure, c.wobble_rms, c.backward, c.axis_tilt,
-                c.gravity_change, c.motion_before, c.motion_after]
-        ax.bar(np.arange(len(names)) + k * width, np.degrees(np.nan_to_num(vals)), width, label=c.label)
+        vals = np.degrees(np.nan_to_num([abs(c.angle) - np.linalg.norm(c.nominal), c.closure, c.wobble_rms,
+                                         c.backward, c.axis_tilt, c.gravity_change, c.motion_before,
+                                         c.motion_after]))
+        ax.bar(np.arange(len(names)) + k * width, vals, width, label=c.label)
+        top, bottom = max(top, float(vals.max())), min(bottom, float(vals.min()))
     ax.set_xticks(np.arange(len(names)) + 0.4 - width / 2, names, rotation=30, fontsize=8)
-    ax.set_ylabel("[°]")
+    ax.set_ylabel("deviation (°)")
     ax.set_yscale("symlog", linthresh=1e-3)
+    # a decade of headroom above the largest bar (the legend sits there), as much below a negative one
+    ax.set_ylim(-10 * abs(bottom) if bottom < 0 else 0.0, 10 * top)
     ax.set_title("hand-made turns: how far each is from the assumed 360° turn")
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="upper right", ncols=len(checks) or 1)
     ax.grid(alpha=0.3, axis="y")
     return fig
