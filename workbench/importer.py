@@ -104,7 +104,7 @@ def _read_streams(prof: Mapping, profile_path: Path, data: Path) -> dict[str, St
     out = {}
     for name, spec in stream_specs(prof).items():
         if name == SINGLE and "streams" not in prof:
-            if data.is_dir():
+            if data.is_dir() and (prof.get("reader") or {}).get("type") != "rosbag":  # a ROS 2 bag is a folder
                 raise WorkbenchError(f"{data}: is a folder; this profile ({profile_path.name}) reads one file")
             path, where = data, str(data)
         else:
@@ -188,10 +188,20 @@ def _axis_checks(df: pd.DataFrame) -> list[dict]:
     return out
 
 
+def _path_sha256(path: Path) -> str:
+    """SHA-256 of a file, or of the names and digests of a folder's files (a ROS 2 bag is a folder)."""
+    if not path.is_dir():
+        return file_sha256(path)
+    import hashlib
+
+    parts = {str(p.relative_to(path)): file_sha256(p) for p in sorted(path.rglob("*")) if p.is_file()}
+    return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()
+
+
 def _source_sha(streams: Mapping[str, Stream]) -> str:
     """SHA-256 of the source file (one stream) or of the streams' names and file digests."""
-    digests = {name: file_sha256(Path(s.source)) for name, s in streams.items()}
-    if len(digests) == 1:
+    digests = {name: _path_sha256(Path(s.source)) for name, s in streams.items()}
+    if len(set(digests.values())) == 1:  # one file (a log holding every stream)
         return next(iter(digests.values()))
     import hashlib
 

@@ -18,6 +18,7 @@ import numpy as np
 
 from workbench.confine import safe_component
 from workbench.errors import ImportProfileError
+from workbench.importers.readers import READER_KEYS, READER_TYPES, REQUIRED_KEYS
 from workbench.importers.streams import SI_UNIT, TIME_UNITS, TRIAD_OF
 from workbench.safe_yaml import load_yaml_file
 from workbench.session import ACCEL, GYRO
@@ -74,7 +75,24 @@ def _check_time(spec: Mapping, where: str, rate_required: bool) -> None:
     _number(spec.get("rate_hz"), f"{where}rate_hz", 1e-6, 1e7, optional=not needs_rate)
 
 
-def _check_stream(name: str, spec, where: str) -> None:
+def _check_reader(reader: Mapping, where: str) -> None:
+    """A reader's type, its keys (each type has its own) and the ones it needs."""
+    kind = reader.get("type", "csv")
+    if kind not in READER_TYPES:
+        raise ImportProfileError(f"{where}.type {kind!r}: expected one of {', '.join(READER_TYPES)}")
+    unknown = set(reader) - READER_KEYS[kind] - {"type", "trailing_zero_rows"}
+    if unknown:
+        raise ImportProfileError(f"{where}.{sorted(unknown)[0]}: not a key of a {kind} reader "
+                                 f"(keys: {', '.join(sorted(READER_KEYS[kind] | {'type', 'trailing_zero_rows'}))})")
+    for key in REQUIRED_KEYS.get(kind, ()):
+        if key not in reader:
+            raise ImportProfileError(f"{where}.{key}: missing (a {kind} reader needs it)")
+    if reader.get("trailing_zero_rows", "keep") not in ("keep", "drop"):
+        raise ImportProfileError(f"{where}.trailing_zero_rows {reader.get('trailing_zero_rows')!r}: "
+                                 "expected 'keep' or 'drop'")
+
+
+def _check_stream(name: str, spec, where: str, top_reader: Mapping) -> None:
     spec = _mapping(spec, where.rstrip("."), optional=False)
     safe_component(name, f"{where.rstrip('.')}: stream name", ImportProfileError)
     if "file" not in spec:
@@ -83,10 +101,7 @@ def _check_stream(name: str, spec, where: str) -> None:
         raise ImportProfileError(f"{where}file: expected a file name, got {spec['file']!r}")
     _check_time(spec, where, rate_required=True)
     _check_columns(spec.get("columns"), where)
-    reader = _mapping(spec.get("reader"), f"{where}reader")
-    if reader.get("trailing_zero_rows", "keep") not in ("keep", "drop"):
-        raise ImportProfileError(f"{where}reader.trailing_zero_rows {reader.get('trailing_zero_rows')!r}: "
-                                 "expected 'keep' or 'drop'")
+    _check_reader({**top_reader, **_mapping(spec.get("reader"), f"{where}reader")}, f"{where}reader")
     if spec.get("repeats", "flag") not in ("flag", "ignore"):
         raise ImportProfileError(f"{where}repeats {spec.get('repeats')!r}: expected 'flag' or 'ignore'")
     rng = spec.get("range")
@@ -120,7 +135,7 @@ def _check_shape(prof: Mapping, path: Path) -> None:
         if not streams:
             raise ImportProfileError(f"{p}streams: no stream")
         for name, spec in streams.items():
-            _check_stream(str(name), spec, f"{p}streams.{name}.")
+            _check_stream(str(name), spec, f"{p}streams.{name}.", _mapping(prof.get("reader"), f"{p}reader"))
         base = prof.get("time_base", next(iter(streams)) if len(streams) == 1 else None)
         if base not in streams:
             raise ImportProfileError(f"{p}time_base {base!r}: must name one of the streams ({', '.join(streams)})")
@@ -128,6 +143,7 @@ def _check_shape(prof: Mapping, path: Path) -> None:
         if "columns" not in prof:
             raise ImportProfileError(f"{p}missing key 'columns' (or 'streams')")
         _check_columns(prof["columns"], p)
+        _check_reader(_mapping(prof.get("reader"), f"{p}reader"), f"{p}reader")
         _check_time({**prof, "rate_hz": prof.get("sample_rate_hz")}, p, rate_required=True)
     sections = _mapping(prof.get("sections"), f"{p}sections")
     for name, step in _mapping(sections.get("steps"), f"{p}sections.steps").items():

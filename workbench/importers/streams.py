@@ -1,14 +1,15 @@
 """One stream of a recording: read its table, convert its columns to SI, find its sampling instants.
 
 A stream is one file of a recording (``streams.NAME`` of an import profile, or the one file of
-a single-file profile). :func:`read_stream` reads it, converts the profile's columns (unit,
+a single-file profile), or one topic / message of a log (:mod:`workbench.importers.readers`).
+:func:`read_stream` reads it, converts the profile's columns (unit,
 ``scale``, ``offset``: lab units to SI through :mod:`workbench.units`), reconstructs the
 sampling instants (a time column, a sample counter, the row number at the rate, or a sample
 clock fitted to host arrival stamps: :mod:`workbench.importers.clock`) and detects repeated
 samples (every value equal to the previous sample's: a sensor read faster than it updates)
 and saturated samples (a value at the stream's declared ``range``).
 
-Public: :class:`Stream`, :func:`read_stream`, :func:`read_table`, :data:`TRIAD_OF`.
+Public: :class:`Stream`, :func:`read_stream`, :data:`TRIAD_OF`.
 """
 
 from __future__ import annotations
@@ -20,8 +21,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from workbench.errors import ImportProfileError, WorkbenchError
+from workbench.errors import ImportProfileError
 from workbench.importers.clock import ClockFit, fit_arrival_clock
+from workbench.importers.readers import read_log
 from workbench.session import ACCEL, GYRO, MAG
 from workbench.units import factor
 
@@ -62,20 +64,6 @@ class Stream:
         if self.clock is not None:
             return self.clock.rate_hz
         return float(1.0 / np.median(np.diff(self.t))) if len(self.t) > 1 else float("nan")
-
-
-def read_table(path: Path, reader: Mapping, where: str) -> pd.DataFrame:
-    """A CSV or Parquet table (``reader``: type, delimiter, skip_rows, comment); WorkbenchError naming ``where``."""
-    try:
-        if path.suffix == ".parquet" or reader.get("type") == "parquet":
-            return pd.read_parquet(path)
-        return pd.read_csv(path, sep=reader.get("delimiter", ","), skiprows=reader.get("skip_rows", 0),
-                           comment=reader.get("comment"))
-    except FileNotFoundError:
-        raise WorkbenchError(f"{where}: {path}: no such file") from None
-    except Exception as exc:  # pandas/pyarrow raise many types for files that are not tables
-        raise WorkbenchError(f"{where}: {path}: not a readable recording "
-                             f"({type(exc).__name__}: {str(exc)[:120]})") from None
 
 
 def _column(raw: pd.DataFrame, col, where: str) -> np.ndarray:
@@ -124,7 +112,7 @@ def _instants(raw: pd.DataFrame, spec: Mapping, where: str) -> tuple[np.ndarray,
 def read_stream(name: str, spec: Mapping, path: Path, reader: Mapping, where: str) -> Stream:
     """Read stream ``name`` from ``path`` as ``spec`` (a checked profile entry) says; ``where`` names it in errors."""
     reader = {**reader, **(spec.get("reader") or {})}
-    raw = read_table(path, reader, where)
+    raw = read_log(path, reader, where)
     trailing = 0
     if reader.get("trailing_zero_rows") == "drop":  # a preallocated buffer the recorder did not fill
         used = [c for c in raw.columns if c in _used_columns(spec)]
