@@ -322,11 +322,22 @@ def register(app: typer.Typer) -> None:
                                                                    "time error)."),
         confidence: float = typer.Option(0.95, "--confidence", help="With --stat: two-sided interval level "
                                                                     "(0.683 = Stable32's 1 sigma)."),
+        method: str = typer.Option("ieee952", "--method", help="Noise-model fit: ieee952 (Allan-variance terms) | "
+                                                               "gmwm (wavelet-variance fit of --processes)."),
+        processes: str = typer.Option("wn+2gm+rw", "--processes", help="With --method gmwm: the model, terms wn qn "
+                                                                       "rw dr gm joined by + (k*gm repeats)."),
+        bootstrap: int = typer.Option(50, "--bootstrap", help="With --method gmwm: simulated records for the "
+                                                              "optimal weighting matrix (0 = diagonal weights)."),
     ) -> None:
         """Overlapping Allan deviation with 95 % intervals and the IEEE 952 noise terms (or --stat NAME)."""
         cols = [c.strip() for c in columns.split(",")] if columns else None
         if stat is not None:
             _family(source, cols, rate, stat, data_type, taus, confidence, out_csv)
+            return
+        if method not in ("ieee952", "gmwm"):
+            raise AnalysisError(f"--method {method!r} is not ieee952 or gmwm")
+        if method == "gmwm":
+            _gmwm(source, cols, rate, processes, bootstrap, gap_policy, out_csv)
             return
         if stream or _too_large(source, cols):
             an = _streamed(source, cols, rate, taus)
@@ -446,3 +457,47 @@ def _family(source: Path, cols: list[str] | None, rate: float | None, stat: str,
     if out_csv is not None:
         write_csv(out_csv, FAMILY_COLUMNS, family_rows(results))
         out.print(f"curves: {out_csv}")
+
+
+GMWM_COLUMNS = ("column", "parameter", "value", "lo95", "hi95")
+
+
+def _gmwm(source: Path, cols: list[str] | None, rate: float | None, processes: str, bootstrap: int,
+          gap_policy: str, out_csv: Path | None) -> None:
+    """``--method gmwm``: the GMWM fit of every column, its parameters and IEEE 952 equivalents."""
+    from workbench.analysis.allan import prepare_rate_data
+    from workbench.analysis.allan_terms import term_text
+    from workbench.analysis.gmwm import fit_gmwm, parse_model
+
+    parse_model(processes)  # a bad model text fails before the record is read
+    if bootstrap < 0:
+        raise AnalysisError(f"--bootstrap {bootstrap}: must be 0 or more")
+    y, fs, cols, label = load_record(source, cols, rate)
+    quantity = quantity_of(cols)
+    segments, warnings = prepare_rate_data(y, tuple(cols), label, gap_policy, quantity)
+    for w in warnings:
+        out.print(styled("warning:", "yellow", f" {w}"))
+    seg = max(segments, key=len)
+    fits = []
+    for j, col in enumerate(cols):
+        try:
+            fits.append(fit_gmwm(seg[:, j], fs, processes, col, bootstrap=bootstrap))
+        except AnalysisError as exc:
+            raise AnalysisError(f"{label}: column {col}: {exc}") from None
+    t = Table("column", "term", "value [95 % interval]",
+              title=f"GMWM {processes} of {label} (IEEE 952 equivalents in lab units; Gauss-Markov SI)")
+    rows = []
+    for f in fits:
+        for name, (v, lo, hi) in f.terms.items():
+            t.add_row(f.column, name, f"{term_text(quantity, name, v)} [{term_text(quantity, name, lo).split(' ', 1)[1]}"
+                                      f" .. {term_text(quantity, name, hi).split(' ', 1)[1]}]")
+        for name, v, (lo, hi) in zip(f.names(), f.theta, f.ci95):
+            rows.append((f.column, name, float(v), float(lo), float(hi)))
+            if name.startswith("gm"):
+                unit = "s" if name.endswith("tau_c") else {"gyro": "rad/s", "accel": "m/s^2"}.get(quantity, "SI")
+                t.add_row(f.column, name, f"{v:.4g} {unit} [{lo:.4g} .. {hi:.4g}]")
+        rows += [(f.column, f"ieee_{k}", v, lo, hi) for k, (v, lo, hi) in f.terms.items()]
+    out.print(t)
+    if out_csv is not None:
+        write_csv(out_csv, GMWM_COLUMNS, rows)
+        out.print(f"parameters: {out_csv}")
