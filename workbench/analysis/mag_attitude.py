@@ -2,7 +2,8 @@
 
 - :func:`fit_dip`: the accelerometer gives the down direction ``d`` in the IMU axes; the
   field makes a constant angle with it (dip ``δ``), so besides ``|h| = F`` every point obeys
-  ``d · h = F sin δ``. With ``h = inv(G) (m - b)`` and ``G = F (I + M)`` a full (non-symmetric)
+  ``d · h = F sin δ``; each constraint is weighted by its own robust scatter (the dip's carries
+  the accelerometer's noise and, by hand, the motion's accelerations). With ``h = inv(G) (m - b)`` and ``G = F (I + M)`` a full (non-symmetric)
   ``G`` is fitted (both constraints as first-order distances of ``m`` in µT): the second equation fixes the rotation an ellipsoid leaves free, i.e. the
   rotation between magnetometer and accelerometer axes, and it holds the fit together when
   the sphere is covered only in a cap (limited tilt).
@@ -34,7 +35,7 @@ def down_direction(accel: np.ndarray) -> np.ndarray:
 
 
 def fit_dip(mag: np.ndarray, accel: np.ndarray, field_norm_ut: float | None = None, robust: bool | str = False,
-            warnings: tuple[str, ...] = ()) -> MagFit:
+            warnings: tuple[str, ...] = (), gravity_ok: np.ndarray | None = None) -> MagFit:
     """Hard iron, full soft iron (incl. rotation to the accelerometer axes), field norm and dip.
 
     Parameters
@@ -43,8 +44,11 @@ def fit_dip(mag: np.ndarray, accel: np.ndarray, field_norm_ut: float | None = No
     accel : (N, 3) m/s^2 specific force in the IMU body frame at the same instants (static or slow motion)
     field_norm_ut : reference field magnitude µT, or None (det(I + M) = 1)
     robust : reject outliers before the final fit
+    gravity_ok : (N,) bool, the points whose specific force is gravity (quasi-static); only they carry the
+        dip constraint, every point the norm constraint (default: all)
     """
     d = down_direction(accel)
+    w_dip = np.ones(len(mag)) if gravity_ok is None else np.asarray(gravity_ok, float)
     starts = []
     for init in (fit_ellipsoid, fit_sphere):
         try:
@@ -53,28 +57,37 @@ def fit_dip(mag: np.ndarray, accel: np.ndarray, field_norm_ut: float | None = No
             continue
         g0 = f0.field_norm_ut * f0.soft_iron
         h = (mag - f0.bias) @ np.linalg.inv(g0).T
-        dip0 = float(np.median(np.arcsin(np.clip(np.sum(d * h, axis=1) / np.linalg.norm(h, axis=1), -1, 1))))
+        dip0 = float(np.median(np.arcsin(np.clip(np.sum(d * h, axis=1) / np.linalg.norm(h, axis=1), -1, 1))[w_dip > 0]))
         starts.append(np.concatenate([f0.bias, np.linalg.inv(g0).ravel(), [dip0]]))
     if not starts:
         raise AnalysisError("dip fit: no starting ellipsoid or sphere could be fitted")
 
     best = None
+    weight = np.ones(2)  # of the norm and the dip residuals: each group by its own scatter (set below)
+
     def resid(p, idx):
         b = p[3:12].reshape(3, 3)
         u = (mag[idx] - p[:3]) @ b.T  # unit-field vector in the IMU axes
         nu = np.linalg.norm(u, axis=1)
         # both constraints as first-order distances of m (µT): residual / |gradient wrt m|
         norm_res = (nu - 1.0) * nu / np.linalg.norm(u @ b, axis=1)
-        dip_res = (np.sum(d[idx] * u, axis=1) - np.sin(p[12])) / np.linalg.norm(d[idx] @ b, axis=1)
-        return np.column_stack([norm_res, dip_res])
+        dip_res = w_dip[idx] * (np.sum(d[idx] * u, axis=1) - np.sin(p[12])) / np.linalg.norm(d[idx] @ b, axis=1)
+        return np.column_stack([norm_res, dip_res]) * weight
 
     for p0 in starts:
-
         sol = solve(resid, p0, len(mag), robust)
         cost = float(np.mean(sol.residuals**2))
         if best is None or cost < best[0]:
             best = (cost, sol)
-    sol = best[1]
+    # the two constraints have their own noise (the dip's includes the accelerometer's and, by hand, motion):
+    # weight each by its robust scatter (MAD) at the solution, in units of the norm residual, and refit
+    r = best[1].residuals
+    spread = 1.4826 * np.median(np.abs(r[:, 1][w_dip[best[1].inliers] > 0])) if (w_dip > 0).any() else 0.0
+    if spread > 0:
+        weight[1] = min(1.0, 1.4826 * float(np.median(np.abs(r[:, 0]))) / spread)
+        sol = solve(resid, best[1].p, len(mag), robust)
+    else:
+        sol = best[1]
     notes = list(warnings)
     if robust and (~sol.inliers).any():
         notes.append(f"robust fit: {int((~sol.inliers).sum())} of {len(mag)} points rejected as outliers")

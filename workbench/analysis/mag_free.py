@@ -25,10 +25,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from workbench.analysis import mag_ellipsoid, mag_spikes, stationarity
+from workbench.analysis import mag_ellipsoid, mag_quality, mag_spikes, stationarity
 from workbench.analysis.mag_attitude import down_direction
 from workbench.analysis.mag_fit import MagFit
 from workbench.analysis.mag_quality import gravity_spread
+from workbench.analysis.mag_select import Choice
 from workbench.analysis.magnetometer import MIN_POINTS, MagCalibration, MagPoints, calibrate, fit_method
 from workbench.errors import AnalysisError
 from workbench.session import Session
@@ -37,14 +38,6 @@ QUASI_STATIC_TOL = 0.03  # relative deviation of the block's |f| from local grav
 BLOCK_S = 0.05  # s, length of one fit point's block
 MIN_STILL_STRETCHES = 6  # still stretches (orientations) for a fit on still blocks alone
 MIN_STILL_TILT = float(np.radians(30.0))  # rad, spread of their gravity directions
-
-
-def _good(session: Session, triad: str, step: int, n: int) -> np.ndarray:
-    """Samples (n,) of step ``step`` usable for ``triad`` (not flagged repeated or saturated by the import)."""
-    good = getattr(session, "good", None)
-    if good is None or session.samples is None or "flags" not in session.samples:
-        return np.ones(n, bool)
-    return np.asarray(good(triad, step), bool)
 
 
 @dataclass(frozen=True)
@@ -82,18 +75,18 @@ class FreeData:
         names = ", ".join(str(s) for s in self.steps)
         head = (f"free step{'s' if len(self.steps) > 1 else ''} {names} (by hand, no table attitude), "
                 f"{self.still_stretches} still stretch(es) ({self.still_s:.1f} s): ")
+        head += f"all {len(self.t)} {BLOCK_S * 1e3:g}-ms blocks carry the field norm, "
         if self.uses_still:
-            return head + f"fitted on the {int(self.still.sum())} {BLOCK_S * 1e3:g}-ms blocks of the still stretches"
-        return head + (f"too few still orientations, fitted on the {int(self.quasi_static.sum())} of {len(self.t)} "
-                       f"{BLOCK_S * 1e3:g}-ms blocks that are quasi-static (|f| within {QUASI_STATIC_TOL:.0%} of "
-                       f"{self.gravity:.3f} m/s²)")
+            return head + f"the {int(self.still.sum())} of the still stretches gravity"
+        return head + (f"too few still orientations: the {int(self.quasi_static.sum())} quasi-static ones "
+                       f"(|f| within {QUASI_STATIC_TOL:.0%} of {self.gravity:.3f} m/s²) gravity")
 
 
 def free_points(session: Session, block_s: float = BLOCK_S, reject_spikes: bool = True) -> FreeData:
     """Block means of the magnetometer and accelerometer on the session's ``free`` steps.
 
     Samples the import flagged (repeated or saturated) are left out of the means; with
-    ``reject_spikes``, magnetometer spikes too (:mod:`mag_spikes`). Raises AnalysisError when
+    ``reject_spikes``, magnetometer spikes in the still stretches too (:mod:`mag_spikes`). Raises AnalysisError when
     there is no free step or no block with samples.
     """
     steps = session.steps_of_kind("free")
@@ -104,17 +97,15 @@ def free_points(session: Session, block_s: float = BLOCK_S, reject_spikes: bool 
     frames = [(st, session.step_samples(st.index)) for st in steps]
     frames = [(st, df) for st, df in frames if len(df)]
     raw = [df[["mx", "my", "mz"]].to_numpy(float) for _, df in frames]
-    spikes = (mag_spikes.spike_mask([mag_spikes.running_median_residual(m) for m in raw]) if reject_spikes
-              else [np.zeros(len(m), bool) for m in raw])
     mags, accs, ts, labels, norms_still, spike_t, blk_still = [], [], [], [], [], [], []
     n_still, still_s = 0, 0.0
-    for (st, df), m, spike in zip(frames, raw, spikes):
+    for (st, df), m in zip(frames, raw):
         t = df["t"].to_numpy(float)
+        spike = np.zeros(len(df), bool)
         a = df[["ax", "ay", "az"]].to_numpy(float)
         g = df[["gx", "gy", "gz"]].to_numpy(float)
-        ok_m = _good(session, "mag", st.index, len(df)) & ~spike
-        ok_a = _good(session, "accel", st.index, len(df))
-        spike_t.append(t[spike])
+        ok_m = session.good("mag", st.index) & ~spike
+        ok_a = session.good("accel", st.index)
         still = np.zeros(len(df), bool)
         if len(df) >= max(3, int(0.5 * session.sample_rate_hz)):
             found = stationarity.detect(g, a, session.sample_rate_hz)
@@ -123,6 +114,14 @@ def free_points(session: Session, block_s: float = BLOCK_S, reject_spikes: bool 
             still_s += float(still.sum() / session.sample_rate_hz)
             if still.any():
                 norms_still.append(np.linalg.norm(a[still & ok_a], axis=1))
+        # raw-sample spikes only where the unit is still: in motion a running median cannot tell a spike from the
+        # hand's turn (the robust fit's outlier rejection of points covers those)
+        if reject_spikes and still.sum() > mag_spikes.WINDOW:
+            idx = np.flatnonzero(still & ok_m)
+            hit = mag_spikes.spike_mask([mag_spikes.running_median_residual(m[idx])])[0]
+            spike[idx[hit]] = True
+            ok_m[idx[hit]] = False
+        spike_t.append(t[spike])
         block = np.floor((t - t[0]) / block_s).astype(int)
         for k in np.unique(block):
             sel = block == k
@@ -171,7 +170,7 @@ class FreeQuality:
     n_points: int
     split_t: float
     notes: tuple[str, ...] = ()
-    series: dict | None = None  # per point: t s; norm (fraction) and angle rad under each fit (for figures)
+    series: dict | None = None  # per point: t s; norm (fraction) and angle rad (NaN without gravity) per fit
 
     def to_dict(self) -> dict:
         return {"fit": self.fit.to_dict(), "plain_ellipsoid": None if self.baseline is None else self.baseline.to_dict(),
@@ -199,61 +198,106 @@ def point_values(fit: MagFit, mag: np.ndarray, down: np.ndarray) -> tuple[np.nda
     return hn / fit.field_norm_ut - 1.0, np.arccos(np.clip(np.sum(h * down, axis=1) / hn, -1.0, 1.0))
 
 
-def figures_of(fit: MagFit, mag: np.ndarray, down: np.ndarray) -> tuple[float, float]:
-    """(field-norm RMS as a fraction of the fitted norm, std of the field-to-gravity angle rad) of ``fit``
-    on raw points ``mag`` (N, 3) µT with unit down directions ``down`` (N, 3), IMU frame."""
+def figures_of(fit: MagFit, mag: np.ndarray, down: np.ndarray, gravity_ok: np.ndarray | None = None) -> tuple[float, float]:
+    """(field-norm RMS as a fraction of the fitted norm over all points, std of the field-to-gravity angle rad
+    over the points whose specific force is gravity, ``gravity_ok`` (N,) bool, default all) of ``fit`` on raw
+    points ``mag`` (N, 3) µT with unit down directions ``down`` (N, 3), IMU frame."""
     norm, angle = point_values(fit, mag, down)
-    return float(np.sqrt(np.mean(norm**2))), float(np.std(angle))
+    ok = np.ones(len(mag), bool) if gravity_ok is None else gravity_ok
+    return float(np.sqrt(np.mean(norm**2))), float(np.std(angle[ok])) if ok.any() else float("nan")
 
 
-def holdout_quality(fitter: Callable[[np.ndarray, np.ndarray], MagFit], fit: MagFit, mag: np.ndarray,
-                    accel: np.ndarray, t: np.ndarray) -> FreeQuality:
-    """Figures of ``fit`` (fitted on all points) and of ``fitter(mag, accel)`` refitted on the first half in
-    time and judged on the second; the same for the plain algebraic ellipsoid (see the module docstring).
-    ``mag`` (N, 3) µT, ``accel`` (N, 3) m/s^2, ``t`` (N,) s of the points fitted."""
-    down = down_direction(accel)
+Fitter = Callable[[np.ndarray], MagFit]  # fits the points selected by a (N,) bool mask
+
+
+def _halves(t: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
     split = float(np.median(t))
-    first, second = t <= split, t > split
-    notes: list[str] = []
+    return split, t <= split, t > split
 
+
+def held_out(fitter: Fitter, mag: np.ndarray, down: np.ndarray, gravity_ok: np.ndarray, train: np.ndarray,
+             test: np.ndarray) -> tuple[float, float]:
+    """:func:`figures_of` on the ``test`` points of a fit to the ``train`` points (masks (N,))."""
+    return figures_of(fitter(train), mag[test], down[test], gravity_ok[test])
+
+
+def holdout_quality(fitter: Fitter, fit: MagFit, mag: np.ndarray, accel: np.ndarray, t: np.ndarray,
+                    gravity_ok: np.ndarray) -> FreeQuality:
+    """Figures of ``fit`` (fitted on all points) and of ``fitter`` refitted on the first half in time and
+    judged on the second; the same for the plain algebraic ellipsoid (see the module docstring).
+    ``mag`` (N, 3) µT, ``accel`` (N, 3) m/s^2, ``t`` (N,) s of the points, ``gravity_ok`` (N,) bool the
+    points whose specific force is gravity (the angle is judged on them)."""
+    down = down_direction(accel)
+    split, first, second = _halves(t)
+    notes: list[str] = []
     series: dict = {"t": t}
 
-    def figures(name: str, fit_all: MagFit, fit_half: MagFit) -> FitFigures:
-        a, b = figures_of(fit_all, mag, down)
-        c, d = figures_of(fit_half, mag[second], down[second])
-        series[f"{name}_norm"], series[f"{name}_angle"] = point_values(fit_all, mag, down)
+    def figures(name: str, fit_all: MagFit, one: Fitter) -> FitFigures:
+        a, b = figures_of(fit_all, mag, down, gravity_ok)
+        c, d = held_out(one, mag, down, gravity_ok, first, second)
+        norm, angle = point_values(fit_all, mag, down)
+        series[f"{name}_norm"], series[f"{name}_angle"] = norm, np.where(gravity_ok, angle, np.nan)
         return FitFigures(a, b, c, d)
 
-    ours = figures("fit", fit, fitter(mag[first], accel[first]))
+    ours = figures("fit", fit, fitter)
     try:
-        base = figures("plain", mag_ellipsoid.fit_algebraic_plain(mag), mag_ellipsoid.fit_algebraic_plain(mag[first]))
+        base = figures("plain", mag_ellipsoid.fit_algebraic_plain(mag),
+                       lambda sel: mag_ellipsoid.fit_algebraic_plain(mag[sel]))
     except AnalysisError as exc:
         base = None
         notes.append(f"failed ({exc})")
     return FreeQuality(ours, base, len(mag), split, tuple(notes), series)
 
 
+def _choose(fitters: dict[str, Fitter], mag: np.ndarray, down: np.ndarray, gravity_ok: np.ndarray,
+            t: np.ndarray) -> Choice:
+    """The estimator whose field-to-gravity angle spread, held out both ways (fit on one half in time, judge
+    on the other), is the smaller; the constant-dip fit on a tie. The reason gives the figures."""
+    _, first, second = _halves(t)
+    scores = {}
+    for name, f in fitters.items():
+        try:
+            scores[name] = np.mean([held_out(f, mag, down, gravity_ok, a, b)[1] for a, b in ((first, second),
+                                                                                              (second, first))])
+        except AnalysisError:
+            continue
+    if not scores:
+        raise AnalysisError("hand-held magnetometer fit: neither the constant-dip fit nor the ellipsoid fits "
+                            "one half of the record")
+    best = min(scores, key=lambda k: (scores[k], k != "dip"))
+    shown = ", ".join(f"{k} {np.degrees(v):.2f}°" for k, v in scores.items())
+    why = ("constant-dip fit: hard/soft iron and the mag-to-IMU rotation" if best == "dip" else
+           "ellipsoid: the halves do not agree on a mag-to-IMU rotation, so it is not estimated (symmetric soft iron)")
+    return Choice(best, f"field-to-gravity angle spread held out both ways (half to half): {shown}; {why}")
+
+
 def calibrate_free(session: Session, method: str = "auto", robust: bool | str = False,
                    field_norm_ut: float | None = None, accel_model=None, reference=None) -> MagCalibration:
     """Calibrate the magnetometer from the session's ``free`` steps (see the module docstring).
 
-    The quasi-static points go to :func:`workbench.analysis.magnetometer.calibrate` with no attitude
-    (so ``auto`` picks the constant-dip fit when the gravity directions span several tilts), the
-    reason naming the data; the result carries the :class:`FreeQuality` figures. ``accel_model``
-    compensates the accelerometer first (its bias tilts the gravity direction).
+    Every block carries the field-norm constraint; the blocks whose specific force is gravity (the still
+    ones when they suffice, else the quasi-static ones) also carry the dip constraint and judge the angle.
+    ``auto`` chooses between the constant-dip fit and the ellipsoid by their held-out angle spread
+    (:func:`_choose`); the reason names the data and the figures. The result carries the
+    :class:`FreeQuality` figures. ``accel_model`` compensates the accelerometer first.
     """
     data = free_points(session, reject_spikes=robust is not False)
     q = data.fit_mask()
     if q.sum() < MIN_POINTS["dip"]:
-        raise AnalysisError(f"{session.name}: {data.describe()}: too few quasi-static points for a fit "
+        raise AnalysisError(f"{session.name}: {data.describe()}: too few points with gravity for a fit "
                             f"(need {MIN_POINTS['dip']}); hold the unit still or turn it more slowly")
-    points = MagPoints(data.mag[q], data.accel[q], None, None, data.step[q], None, data.t[q], data.spike_t)
+    points = MagPoints(data.mag, data.accel, None, None, data.step, None, data.t, data.spike_t, q)
+    accel = data.accel if accel_model is None else accel_model.compensate(data.accel)
+    down = down_direction(accel)
+
+    def fitter(name: str) -> Fitter:
+        return lambda sel: fit_method(name, MagPoints(data.mag[sel], accel[sel], gravity_ok=q[sel]), down[sel],
+                                      field_norm_ut, robust)
+
+    choice = None
+    if method == "auto" and mag_quality.thickness(data.mag) >= mag_quality.FLAT_LIMIT_UT:
+        choice = _choose({"dip": fitter("dip"), "ellipsoid": fitter("ellipsoid")}, data.mag, down, q, data.t)
     cal = calibrate(points, method=method, robust=robust, field_norm_ut=field_norm_ut, accel_model=accel_model,
-                    reference=reference, source=session.name, data=data.describe())
-    accel = cal.points.accel  # compensated when the accelerometer calibration was given
-
-    def refit(m: np.ndarray, a: np.ndarray) -> MagFit:
-        return fit_method(cal.fit.method, MagPoints(m, a), down_direction(a), field_norm_ut, robust)
-
-    quality = holdout_quality(refit, cal.fit, points.mag, accel, points.t)
+                    reference=reference, source=session.name, data=data.describe(), choice=choice)
+    quality = holdout_quality(fitter(cal.fit.method), cal.fit, data.mag, accel, data.t, q)
     return replace(cal, free_quality=quality)

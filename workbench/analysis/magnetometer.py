@@ -53,7 +53,8 @@ class MagPoints:
     table zero azimuth is known, else ``"table"``: level frame with x along the table zero);
     ``step`` (N,) the step index of each point; ``samples_per_point`` (N,); ``t`` (N,) s the mean
     sample time of each point; ``spike_t`` s the times of the raw samples left out as spikes
-    (:mod:`mag_spikes`).
+    (:mod:`mag_spikes`); ``gravity_ok`` (N,) bool the points whose specific force is gravity (None: all;
+    by hand, the quasi-static ones: only they carry the dip constraint and the tilt spread).
     """
 
     mag: np.ndarray
@@ -64,6 +65,7 @@ class MagPoints:
     samples_per_point: np.ndarray | None = None
     t: np.ndarray | None = None
     spike_t: np.ndarray | None = None
+    gravity_ok: np.ndarray | None = None  # (N,) bool: points whose accel is gravity (hand-held: quasi-static)
 
     def __len__(self) -> int:
         return len(self.mag)
@@ -208,7 +210,7 @@ def fit_method(method: str, points: MagPoints, down: np.ndarray | None, field_no
     if method == "dip":
         if points.accel is None:
             raise AnalysisError("dip fit: needs accelerometer data")
-        return mag_attitude.fit_dip(mag, points.accel, field_norm_ut, robust, notes)
+        return mag_attitude.fit_dip(mag, points.accel, field_norm_ut, robust, notes, points.gravity_ok)
     if points.attitude is None:
         raise AnalysisError("attitude fit: needs the attitude of every point (table angles)")
     return mag_attitude.fit_attitude(mag, points.attitude, field_norm_ut, robust, notes)
@@ -217,7 +219,7 @@ def fit_method(method: str, points: MagPoints, down: np.ndarray | None, field_no
 def calibrate(points: MagPoints, method: str = "auto", robust: bool | str = False, field_norm_ut: float | None = None,
               declination: float | None = None, baseline: bool = True, accel_model: TriadModel | None = None,
               reference: ReferenceField | None = None, source: str = "magnetometer data",
-              data: str | None = None) -> MagCalibration:
+              data: str | None = None, choice: mag_select.Choice | None = None) -> MagCalibration:
     """Calibrate a magnetometer from ``points``.
 
     Parameters
@@ -235,6 +237,7 @@ def calibrate(points: MagPoints, method: str = "auto", robust: bool | str = Fals
     reference : a geomagnetic model's field at the site (:mod:`mag_reference`): the fitted norm
         (when estimated) and dip are checked against it (warnings)
     data : a phrase naming the data the points come from; it leads the reason of the choice
+    choice : the estimator already chosen, with its reason (overrides ``method``)
 
     The heading error is evaluated when the attitude is known, with the tilt from the
     calibrated accelerometer when ``accel_model`` is given, else from the table attitude (so
@@ -250,10 +253,12 @@ def calibrate(points: MagPoints, method: str = "auto", robust: bool | str = Fals
     down = _down(points)
     flat = mag_quality.thickness(points.mag)
     raw_cov = mag_quality.sphere_coverage(points.mag - points.mag.mean(axis=0))
-    spread = mag_quality.gravity_spread(down) if points.accel is not None or points.attitude is not None else None
-    if method == "auto":
+    spread = None
+    if points.accel is not None or points.attitude is not None:
+        spread = mag_quality.gravity_spread(down if points.gravity_ok is None else down[points.gravity_ok])
+    if choice is None and method == "auto":
         choice = mag_select.choose(flat, raw_cov, spread, points.attitude is not None)
-    else:
+    elif choice is None:
         choice = mag_select.Choice(method, "chosen by the user")
     if data:
         choice = mag_select.Choice(choice.method, f"{data}; {choice.reason}")

@@ -63,9 +63,7 @@ def still_means(session: Session, settle_s: float = 0.25) -> list[StillMean]:
         g = df[["gx", "gy", "gz"]].to_numpy(float)
         a = df[["ax", "ay", "az"]].to_numpy(float)
         t = df["t"].to_numpy(float)
-        ok = np.ones(len(df), bool)
-        if hasattr(session, "good") and "flags" in df:
-            ok = np.asarray(session.good("gyro", st.index), bool) & np.asarray(session.good("accel", st.index), bool)
+        ok = session.good("gyro", st.index) & session.good("accel", st.index)
         found = stationarity.detect(g, a, fs)
         for s0, s1 in found.stretches:
             sel = np.arange(s0 + cut, s1 - cut)
