@@ -45,6 +45,12 @@ OPTIONS = (
     Option("taus", "analysis", "any", "octave", "averaging times: octave, decade, '<k>-per-decade' or a list of "
            "taus", unit="s"),
     Option("gap_policy", "analysis", "str", "error", "what a gap in the record does", choices=GAP_POLICIES),
+    Option("method", "analysis", "str", "ieee952", "noise terms of the calibration set: IEEE 952 Allan fit or GMWM",
+           choices=("ieee952", "gmwm")),
+    Option("gmwm_model", "analysis", "str", "wn+2gm+rw", "with method gmwm: the processes (wn qn rw dr gm, joined "
+           "by +; k*gm repeats)"),
+    Option("gmwm_bootstrap", "analysis", "int", 50, "with method gmwm: simulated records for the weighting matrix",
+           ge=0),
 )
 DEFAULTS = defaults(OPTIONS)
 LABEL = "allan"
@@ -109,11 +115,30 @@ def analyze(session, **options) -> ProcedureResult:
                                              triad, taus, src)
         else:
             analyses[triad] = analyze_record(data(step.index), rate, cols, triad, taus, gap_policy, src)
-    cal = CalibrationSet(unit=session.unit, noise={t: a.noise_block() for t, a in analyses.items()},
+    blocks = {t: a.noise_block() for t, a in analyses.items()}
+    gmwm = _gmwm(session, step, o, analyses) if o["method"] == "gmwm" else {}
+    blocks.update({t: g.noise_block() for t, g in gmwm.items()})
+    cal = CalibrationSet(unit=session.unit, noise=blocks,
                          notes={NAME: {"sample_rate_hz": rate, "duration_s": step.duration,
                                        "temperature_c": step.temperature_c}})
-    return ProcedureResult(NAME, result=_result_dict(analyses, step), calibration=cal, payload=analyses,
-                           summary=_summary(analyses), warnings=[w for a in analyses.values() for w in a.warnings])
+    result = _result_dict(analyses, step)
+    if gmwm:  # the noise block above is GMWM's; the IEEE 952 terms stay in result[triad]["terms"]
+        result["gmwm"] = {t: g.to_dict() for t, g in gmwm.items()}
+    return ProcedureResult(NAME, result=result, calibration=cal, payload=analyses,
+                           summary=_summary(analyses) + [line for g in gmwm.values() for line in g.summary()],
+                           warnings=[w for a in analyses.values() for w in a.warnings])
+
+
+def _gmwm(session, step, o, analyses) -> dict:
+    """``method=gmwm``: the GMWM fit of every triad analysed (in memory only)."""
+    from workbench.analysis.gmwm_record import analyze_gmwm
+
+    if session.samples is None:
+        raise AnalysisError(f"{session.name}: method gmwm needs the record in memory (not a lazily loaded session)")
+    data = {"gyro": (GYRO, session.gyro), "accel": (ACCEL, session.accel)}
+    return {t: analyze_gmwm(data[t][1](step.index), float(session.sample_rate_hz), data[t][0], t, o["gmwm_model"],
+                            o["gmwm_bootstrap"], o["gap_policy"], f"{session.name}: step {step.index} ({t})")
+            for t in analyses}
 
 
 def _result_dict(analyses: dict[str, AllanAnalysis], step) -> dict:
