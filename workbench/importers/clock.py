@@ -13,8 +13,10 @@ the instants are the true ones plus that constant.
 
 Lost samples (the recorder paused or dropped data) show as a step up of the envelope: after
 the loss every sample is late by the missing time. A step of more than :data:`GAP_PERIODS`
-sample periods (and over :data:`GAP_MIN_S`) in the running minimum latency becomes a gap of ``round(step / period)`` lost
-samples, and the clock is fitted again with the sample numbers shifted.
+sample periods (and over :data:`GAP_MIN_S`) in the running minimum latency becomes a gap; its
+length comes from clock lines under the stamps on either side (5 s each, with the median
+period of the knot intervals as slope, so only their offsets are fitted), and the clock is
+fitted again with the sample numbers shifted.
 
 Public: :func:`fit_arrival_clock` -> :class:`ClockFit`.
 """
@@ -26,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import linprog
 from scipy.sparse import csr_matrix
+from scipy.spatial import ConvexHull, QhullError
 
 from workbench.errors import ImportProfileError
 
@@ -68,18 +71,16 @@ class ClockFit:
         return 1e3 * float(p50), 1e3 * float(p99), 1e3 * float(self.latency.max())
 
 
-def _lower_hull(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Indices of the lower convex hull of points sorted by ``x`` (monotone chain)."""
-    hull: list[int] = []
-    for i in range(len(x)):
-        while len(hull) >= 2:
-            o, a = hull[-2], hull[-1]
-            if (x[a] - x[o]) * (y[i] - y[o]) - (y[a] - y[o]) * (x[i] - x[o]) <= 0:
-                hull.pop()
-            else:
-                break
-        hull.append(i)
-    return np.asarray(hull, dtype=np.int64)
+def _hull_vertices(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Indices of the convex hull's vertices of the points (qhull); all points when degenerate.
+
+    A superset of the lower hull: the upper vertices are valid, non-binding constraints."""
+    if len(x) < 4:
+        return np.arange(len(x))
+    try:
+        return ConvexHull(np.c_[x - x[0], (y - y.min()) * (x[-1] - x[0] + 1) / (np.ptp(y) + 1e-300)]).vertices
+    except QhullError:
+        return np.arange(len(x))
 
 
 def _hat(k: np.ndarray, knots: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -102,9 +103,10 @@ def _envelope(k: np.ndarray, a: np.ndarray, period: float, knot_s: float) -> tup
     y = a - k * period
     j_all = np.clip(np.searchsorted(knots, k, side="right") - 1, 0, n_int - 1)
     rows = []
+    bounds = np.searchsorted(j_all, np.arange(n_int + 1))  # j_all is sorted: interval j is rows bounds[j]..
     for j in range(n_int):
-        sel = np.flatnonzero(j_all == j)
-        rows.append(sel[_lower_hull(k[sel].astype(float), y[sel])])
+        sel = np.arange(bounds[j], bounds[j + 1])
+        rows.append(sel[_hull_vertices(k[sel].astype(float), y[sel])])
     active = np.unique(np.concatenate(rows))
     j, w0, w1 = _hat(k[active].astype(float), knots)
     n_act = len(active)
@@ -131,31 +133,16 @@ def _running_min_steps(latency: np.ndarray, candidates: np.ndarray, width: int) 
     return cs
 
 
-def _lower_line(k: np.ndarray, a: np.ndarray, slope: float | None) -> tuple[float, float]:
-    """Intercept and slope (s, s per sample) of the highest line under the points (k, a);
-    with ``slope`` given only the intercept is fitted."""
-    if slope is not None:
-        return float(np.min(a - slope * k)), slope
-    h = _lower_hull(k.astype(float), a - (a[-1] - a[0]) / max(k[-1] - k[0], 1) * k)
-    kh, ah = k[h].astype(float), a[h]
-    res = linprog([-len(k), -float(k.sum())], A_ub=np.c_[np.ones(len(h)), kh], b_ub=ah,
-                  bounds=[(None, None)] * 2, method="highs")
-    return float(res.x[0]), float(res.x[1])
-
-
 def _lost_samples(a: np.ndarray, row: int, width: int, period: float) -> int:
-    """Samples lost before ``row``: the clock lines fitted under the stamps on either side
-    (``width`` samples each; a side shorter than that takes the slope ``period``),
-    extrapolated to the pause, differ by the missing time."""
+    """Samples lost before ``row``: the clock lines of slope ``period`` under the stamps on either side
+    (``width`` samples each), extrapolated to the pause, differ by the missing time."""
     lo, hi = max(0, row - width), min(len(a), row + width)
     if row - lo < 2 or hi - row < 2:
         return 0
-    kl, kr = np.arange(lo, row), np.arange(row, hi)
-    c_l, p_l = _lower_line(kl, a[lo:row], None if row - lo == width else period)
-    c_r, p_r = _lower_line(kr, a[row:hi], None if hi - row == width else period)
-    period = 0.5 * (p_l + p_r)
-    t_last = c_l + p_l * (row - 1)  # instant of the last sample before the pause on the left clock
-    t_first = c_r + p_r * row  # instant of the first sample after it on the right clock
+    k = np.arange(lo, hi)
+    y = a[lo:hi] - period * k
+    t_last = float(y[:row - lo].min()) + period * (row - 1)  # instant of the last sample before the pause
+    t_first = float(y[row - lo:].min()) + period * row  # instant of the first sample after it
     return max(0, int(round((t_first - t_last) / period)) - 1)
 
 
@@ -192,11 +179,14 @@ def fit_arrival_clock(arrival: np.ndarray, nominal_rate_hz: float | None, where:
         near = pauses[(np.abs(pauses - pauses[best]) <= width) & (pauses >= width) & (pauses <= len(a) - width)]
         if not len(near):  # within a second of an end: too few stamps on one side to tell a loss
             break
-        lost = np.array([_lost_samples(a, r, side, period) for r in near])
+        # the slope: the median of the knot intervals' periods (the few next to a loss are off)
+        typical = float(np.median(np.diff(values) / np.diff(knots)))
+        lost = np.array([_lost_samples(a, r, side, typical) for r in near])
         if lost.max() * period <= max(GAP_PERIODS * period, GAP_MIN_S):
             break
-        at = int(np.argmax(lost >= lost.max() - 1))
-        offsets[near[at]:] += int(lost[at])
+        agree = lost >= lost.max() - 1
+        at = int(np.argmax(agree))  # the earliest: the pauses after the loss see it too
+        offsets[near[at]:] += int(np.round(np.median(lost[agree])))
     k = np.arange(len(a)) + offsets
     instants = _evaluate(k, knots, values)
     lat = a - instants

@@ -101,7 +101,7 @@ def _instants(raw: pd.DataFrame, spec: Mapping, where: str) -> tuple[np.ndarray,
         t = _column(raw, tspec["column"], f"{where}: time.column") * TIME_UNITS[tspec.get("unit", "s")]
         if tspec.get("stamps", "sample") == "arrival":
             clock = fit_arrival_clock(t, rate, f"{where}: time.column {tspec['column']!r}")
-            return clock.instants, clock, clock.sample_number
+            return clock.instants, clock, np.arange(n)  # sections count the file's rows
         return t, None, np.arange(n)
     if "counter" in tspec:
         counter = _column(raw, tspec["counter"], f"{where}: time.counter")

@@ -40,7 +40,13 @@ def import_summary(streams: Mapping[str, Stream], base: str, merged: Merged, ste
     for triad in ("gyro", "accel", "mag"):
         flagged[triad] = {"saturated": int(np.count_nonzero(flags & FLAG_SATURATED[triad])),
                           "repeated": int(np.count_nonzero(flags & FLAG_REPEATED[triad]))}
-    return {"time_base": base, "streams": {n: _stream_entry(s) for n, s in streams.items()},
+    entries = {n: _stream_entry(s) for n, s in streams.items()}
+    names = list(streams)
+    for i, n in enumerate(names):  # streams of one read share their stamps: say so once
+        same = next((m for m in names[:i] if np.array_equal(streams[m].t, streams[n].t)), None)
+        if same is not None:
+            entries[n]["same_instants_as"] = same
+    return {"time_base": base, "streams": entries,
             "interpolation": "linear, repeats left out, never across a stream gap" if len(streams) > 1 else None,
             "dropped_rows": merged.dropped, "samples": int(len(flags)), "flagged": flagged,
             "steps": "sections" if sectioned else f"{len(steps)} free step(s), split at sampling gaps"}
@@ -58,7 +64,9 @@ def summary_lines(summary: Mapping) -> list[str]:
                      + (f"; {e['trailing_zero_rows_dropped']} all-zero rows at the end dropped (unfilled buffer)"
                         if e.get("trailing_zero_rows_dropped") else ""))
         c = e.get("clock")
-        if c is not None:
+        if e.get("same_instants_as"):
+            lines.append(f"  same instants as {e['same_instants_as']} (one read): copied, not interpolated")
+        elif c is not None:
             lost = sum(g["lost_samples"] for g in c["gaps"])
             lines.append(f"  arrival stamps -> sample clock: latency median {1e3 * c['latency_median_s']:.1f} ms, "
                          f"99 % {1e3 * c['latency_p99_s']:.1f} ms, max {1e3 * c['latency_max_s']:.1f} ms; "
@@ -71,7 +79,7 @@ def summary_lines(summary: Mapping) -> list[str]:
                      f"rows dropped (no data of a stream there): {dropped or 'none'}")
     fl = summary["flagged"]
     marks = [f"{t} {k} {v}" for t, d in fl.items() for k, v in d.items() if v]
-    lines.append(f"{summary['samples']} samples kept; flagged (left out of fits): {', '.join(marks) or 'none'}")
+    lines.append(f"{summary['samples']} samples kept; rows flagged (left out of fits): {', '.join(marks) or 'none'}")
     lines.append(f"steps: {summary['steps']}")
     lines.extend(c["message"] for c in summary.get("axis_check", []))
     return lines
