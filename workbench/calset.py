@@ -29,7 +29,7 @@ import numpy as np
 from workbench import __version__
 from workbench.errors import CalibrationFormatError
 from workbench.files import atomic_write_text, file_sha256  # noqa: F401  (re-exported: older imports)
-from workbench.model import ThermalModel, TriadModel
+from workbench.model import COEFFICIENT_FIELDS, ThermalModel, TriadModel
 from workbench.values import Unit
 
 FORMAT = "workbench-calibration/1"
@@ -39,7 +39,6 @@ NOISE_TERMS = {
     "gyro": ("arw", "bias_instability", "rrw", "quantization", "rate_ramp"),
     "accel": ("vrw", "bias_instability", "rrw", "quantization", "rate_ramp"),
 }
-_FIELDS = ("bias", "scale_misalignment", "nonlinearity", "g_sensitivity")
 _SHAPES = {"bias": (3,), "scale_misalignment": (3, 3), "nonlinearity": (3,), "g_sensitivity": (3, 3)}
 
 
@@ -261,7 +260,7 @@ def _none_to_nan(values) -> np.ndarray:
 def _triad_to_dict(name: str, tc: TriadCalibration) -> dict:
     m = tc.model
     out: dict = {}
-    for f in _FIELDS:
+    for f in COEFFICIENT_FIELDS:
         value = getattr(m, f)
         if value is None or (f == "nonlinearity" and not np.any(value) and f not in tc.sigma):
             continue
@@ -305,7 +304,7 @@ def _triad_from_dict(name: str, d: Mapping, source: str) -> TriadCalibration:
         )
     except CalibrationFormatError as exc:
         raise CalibrationFormatError(f"{source}: {name}.{exc}") from None
-    for f in _FIELDS:
+    for f in COEFFICIENT_FIELDS:
         if f + "_sigma" in d:
             sigma[f] = _none_to_nan(d[f + "_sigma"])
     th = d.get("thermal", {})

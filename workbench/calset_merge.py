@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from workbench.calset import _FIELDS, CalibrationSet, Provenance, TriadCalibration
+from workbench.calset import CalibrationSet, Provenance, TriadCalibration
 from workbench.errors import CalibrationFormatError
-from workbench.model import TriadModel
+from workbench.model import COEFFICIENT_FIELDS, TriadModel
 from workbench.values import Unit
 
 
@@ -27,7 +27,7 @@ def _merge_array(old: np.ndarray, old_sig: np.ndarray, new: np.ndarray, new_sig:
 
 def _merge_triads(old: TriadCalibration, new: TriadCalibration) -> TriadCalibration:
     fields, sigma = {}, dict(old.sigma)
-    for f in _FIELDS:
+    for f in COEFFICIENT_FIELDS:
         o, n = getattr(old.model, f), getattr(new.model, f)
         if n is None or o is None:
             fields[f] = n if n is not None else o

@@ -13,8 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from workbench.calset import TRIADS, CalibrationSet
+from workbench.model import COEFFICIENT_FIELDS
 
-_FIELDS = ("bias", "scale_misalignment", "nonlinearity", "g_sensitivity")
 
 CHANGED = "changed"  # both observed: change_in_sigma is finite
 NOT_OBSERVED_A = "not observed in A"  # the old version did not observe it (sigma null)
@@ -55,7 +55,7 @@ def _field_pairs(a: CalibrationSet, b: CalibrationSet):
         ta, tb = a.triads.get(triad), b.triads.get(triad)
         if ta is None or tb is None:
             continue
-        for f in _FIELDS:
+        for f in COEFFICIENT_FIELDS:
             va, vb = getattr(ta.model, f), getattr(tb.model, f)
             if va is not None and vb is not None:
                 yield triad, f, va, vb, ta.sigma_of(f), tb.sigma_of(f)

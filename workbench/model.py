@@ -29,6 +29,8 @@ import numpy as np
 from workbench.errors import CalibrationFormatError
 
 _ZERO3 = np.zeros(3)
+# the coefficient arrays of a TriadModel (besides its thermal block), in file and display order
+COEFFICIENT_FIELDS = ("bias", "scale_misalignment", "nonlinearity", "g_sensitivity")
 
 
 def _array(value, shape: tuple[int, ...], name: str) -> np.ndarray:

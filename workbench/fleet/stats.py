@@ -7,8 +7,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from workbench.calset import CalibrationSet
+from workbench.model import COEFFICIENT_FIELDS
 
-_FIELDS = ("bias", "scale_misalignment", "nonlinearity", "g_sensitivity")
 OUTLIER_Z = 3.5  # robust z-score (median / 1.4826 MAD) above which a unit is flagged
 
 
@@ -35,7 +35,7 @@ def coefficient_stats(sets: list[CalibrationSet]) -> list[CoefficientStats]:
     values: dict[tuple, list[tuple[str, float]]] = {}
     for s in sets:
         for triad, tc in s.triads.items():
-            for f in _FIELDS:
+            for f in COEFFICIENT_FIELDS:
                 arr = getattr(tc.model, f)
                 if arr is None:
                     continue
