@@ -181,10 +181,11 @@ def analyze_thermal(session, triads=("gyro", "accel"), t_ref_c: float = 25.0, ma
     warnings: list[str] = []
     points: dict[str, list[SoakPoint]] = {}
     ramps: dict[str, RampSeries] = {}
-    if not soak_groups(session) and not session.steps_of_kind("ramp"):
-        raise SessionError(f"{session.name}: no soak step followed by measurement steps and no ramp step: "
-                           "not a thermal session")
-    if soak_groups(session):
+    groups = soak_groups(session, settle_tol_c_per_min, settle_window_s)  # found from the data without soak steps
+    if not groups and not session.steps_of_kind("ramp"):
+        raise SessionError(f"{session.name}: no soak step followed by measurement steps, no holds at two or more "
+                           "setpoints or unit temperatures, and no ramp step: not a thermal session")
+    if groups:
         points, w = soak_points(session, triads, settle_tol_c_per_min, settle_window_s, position_sigma,
                                 bias_instability)
         warnings += w

@@ -55,6 +55,7 @@ class SoakGroup:
     soak_step: int
     setpoint_c: float | None
     steps: tuple[int, ...]
+    found: tuple[int, ...] | None = None  # soak not labelled: the group's steps taken as its soak (from the data)
 
 
 def _require_temp(session, steps) -> None:
@@ -64,8 +65,16 @@ def _require_temp(session, steps) -> None:
                            f"a thermal analysis needs it ({where})")
 
 
-def soak_groups(session) -> list[SoakGroup]:
-    """Group the session's steps: each ``soak`` step with the non-soak, non-ramp steps after it."""
+SAME_TEMP_C = 2.0  # °C: consecutive holds without setpoints whose unit temperatures differ less are one soak
+
+
+def soak_groups(session, settle_tol_c_per_min: float = 0.05, settle_window_s: float = 120.0) -> list[SoakGroup]:
+    """Group the session's steps: each ``soak`` step with the non-soak, non-ramp steps after it.
+
+    A session without ``soak`` steps (other labs' software does not label them) is grouped by
+    :func:`found_soak_groups`: the soak is found from the data."""
+    if not any(st.kind == "soak" for st in session.steps):
+        return found_soak_groups(session, settle_tol_c_per_min, settle_window_s)
     groups: list[SoakGroup] = []
     for st in sorted(session.steps, key=lambda s: s.t_start):
         if st.kind == "soak":
@@ -76,6 +85,61 @@ def soak_groups(session) -> list[SoakGroup]:
             g = groups[-1]
             groups[-1] = SoakGroup(g.soak_step, g.setpoint_c, (*g.steps, st.index))
     return [g for g in groups if g.steps]
+
+
+def found_soak_groups(session, settle_tol_c_per_min: float = 0.05, settle_window_s: float = 120.0) -> list[SoakGroup]:
+    """Soaks of a session without soak steps, from the data (at least two, else none).
+
+    Consecutive static and rate steps (a ramp ends a group) belong together while their chamber setpoint
+    (``temperature_c``) stays the same or, without setpoints, while their mean unit temperature stays
+    within :data:`SAME_TEMP_C` of the group's first. In each group the leading steps are the soak while
+    the unit temperature over the remaining steps still moves (regression slope above the settling
+    tolerance by more than its 2 sigma, the soak analysis's own test); the rest are measured. A group
+    that never settles keeps all its steps (the soak analysis then flags it unsettled). ``found`` holds
+    all the group's steps (their temperature record stands for the soak's).
+    """
+    if session.samples is None or "temp" not in session.samples.columns:
+        return []
+    labels = session.samples["step"].to_numpy()
+    t_all, temp_all = session.samples["t"].to_numpy(float), session.samples["temp"].to_numpy(float)
+    runs: list[list] = []
+    key0 = None
+    for st in sorted(session.steps, key=lambda s: s.t_start):
+        if st.kind not in ("static", "rate"):
+            key0 = None
+            continue
+        sel = labels == st.index
+        if not sel.any():
+            continue
+        mean_temp = float(temp_all[sel].mean())
+        same = (key0 is not None and (st.temperature_c == key0[0] if st.temperature_c is not None
+                                      else key0[0] is None and abs(mean_temp - key0[1]) < SAME_TEMP_C))
+        if not same:
+            runs.append([])
+            key0 = (st.temperature_c, mean_temp)
+        runs[-1].append(st)
+    if len(runs) < 2:
+        return []
+    groups = []
+    for run in runs:
+        idx = [st.index for st in run]
+        measured = idx
+        for k in range(len(idx)):  # the leading steps while the rest's temperature still moves are the soak
+            sel = np.isin(labels, idx[k:])
+            if _settled(t_all[sel], temp_all[sel], settle_tol_c_per_min):
+                measured = idx[k:]
+                break
+        groups.append(SoakGroup(idx[0], run[0].temperature_c, tuple(measured), tuple(idx)))
+    return groups
+
+
+def _settled(t: np.ndarray, temp: np.ndarray, tol_c_per_min: float) -> bool:
+    """Whether the unit temperature's regression slope is below ``tol_c_per_min`` (°C/min) within its 2 sigma
+    (the soak analysis's own test of its measurement steps); records under 10 s count as settled."""
+    if len(t) <= 3 or t[-1] - t[0] < 10.0:
+        return True
+    p, cov = np.polyfit(t - t[0], temp, 1, cov=True)
+    return abs(p[0] * 60.0) - 2.0 * float(np.sqrt(cov[0, 0])) * 60.0 < tol_c_per_min
 
 
 def _samples_of(session, steps) -> np.ndarray:
@@ -110,9 +174,10 @@ def soak_points(session, triads=("gyro", "accel"), settle_tol_c_per_min: float =
     Returns ({triad: [SoakPoint]}, warnings).
     """
     tt = _turntable()
-    groups = soak_groups(session)
+    groups = soak_groups(session, settle_tol_c_per_min, settle_window_s)
     if not groups:
-        raise SessionError(f"{session.name}: no soak step followed by measurement steps")
+        raise SessionError(f"{session.name}: no soak step followed by measurement steps, and no soaks found from "
+                           "the data (holds at two or more setpoints or unit temperatures)")
     _require_temp(session, [g.soak_step for g in groups])
     t_all = session.samples["t"].to_numpy(float)
     temp_all = session.samples["temp"].to_numpy(float)
@@ -121,7 +186,7 @@ def soak_points(session, triads=("gyro", "accel"), settle_tol_c_per_min: float =
     hidden: dict[str, list] = {t: [] for t in triads}  # per soak: step, hideable bias instability (3,), dwell s
     prev_temp = None
     for g in groups:
-        soak_sel = _samples_of(session, [g.soak_step])
+        soak_sel = _samples_of(session, [g.soak_step] if g.found is None else g.found)
         meas_sel = _samples_of(session, g.steps)
         ts, temps = t_all[soak_sel], temp_all[soak_sel]
         tm, tempm = t_all[meas_sel], temp_all[meas_sel]
