@@ -9,7 +9,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from workbench.errors import AnalysisError
 from workbench.session import Session
@@ -23,11 +22,12 @@ def declination(session: Session, override_deg: float | None = None) -> float:
     """
     if override_deg is not None:
         return float(np.radians(override_deg))
-    from workbench.rigconfig import RIGS_DIR
+    from workbench.rigconfig import RIGS_DIR, load_rig_config
 
     for path in sorted(Path(RIGS_DIR).glob("*.yaml")):
-        data = yaml.safe_load(path.read_text()) or {}
-        if session.rig is not None and data.get("name", data.get("driver")) == session.rig:
-            return float(np.radians((data.get("magnetic_field") or {}).get("declination_deg", 0.0)))
+        cfg = load_rig_config(path)  # the strict schema, as every rig configuration is read
+        if session.rig is not None and cfg.name == session.rig:
+            north, east = cfg.magnetic_field_ned[:2]
+            return float(np.arctan2(east, north))
     raise AnalysisError(f"{session.name}: magnetic declination unknown (rig {session.rig!r} has no configuration): "
                         "pass declination_deg")
