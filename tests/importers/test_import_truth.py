@@ -114,3 +114,32 @@ def test_the_axis_check_passes_on_the_virtual_recording(imported):
     session, _ = imported
     checks = {c["reference"]: c for c in session.options["import"]["axis_check"]}
     assert checks["accel"]["agrees"] is True and checks["mag"]["agrees"] is True
+
+
+def test_a_flipped_gyro_axis_in_the_files_is_named_on_import(tmp_path):
+    unit = draw_unit(load_spec("consumer_9axis"), 12)
+    write_stream_recording(tmp_path / "data", unit, 12, duration_s=30.0, pause_s=0.0, temperature_c=T_REF)
+    gyro = (tmp_path / "data" / "gyroscope.csv").read_text().splitlines()
+    rows = [gyro[0]] + [",".join([r.split(",")[0], r.split(",")[1], str(-float(r.split(",")[2])), r.split(",")[3]])
+                        for r in gyro[1:]]  # the logger wrote gy with the wrong sign
+    (tmp_path / "data" / "gyroscope.csv").write_text("\n".join(rows) + "\n")
+    s = import_file(_profile(tmp_path / "p.yaml"), tmp_path / "data", tmp_path / "s")
+    checks = {c["reference"]: c for c in s.options["import"]["axis_check"]}
+    for ref in ("accel", "mag"):
+        assert checks[ref]["agrees"] is False
+        assert np.allclose(checks[ref]["best"], np.diag([1.0, -1.0, 1.0]))
+        assert "DISAGREE" in checks[ref]["message"] and "gy <- -gy" in checks[ref]["message"]
+
+
+def test_sections_count_the_time_base_rows(tmp_path):
+    unit = draw_unit(load_spec("consumer_9axis"), 13)
+    write_stream_recording(tmp_path / "data", unit, 13, duration_s=20.0, pause_s=0.0, temperature_c=T_REF)
+    p = _profile(tmp_path / "p.yaml")
+    prof = yaml.safe_load(p.read_text())
+    prof["sections"] = {"inline": {"first": [100, 900], "second": [1000, 1800]},
+                        "steps": {"first": {"kind": "free"}, "second": {"kind": "free"}}}
+    p.write_text(yaml.safe_dump(prof))
+    s = import_file(p, tmp_path / "data", tmp_path / "s")
+    assert [st.label for st in s.steps] == ["first", "second"]
+    # 800 rows each, less the base rows the merge dropped before the magnetometer's first read (none here)
+    assert [int((s.samples["step"] == st.index).sum()) for st in s.steps] == [800, 800]
