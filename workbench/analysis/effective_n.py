@@ -13,7 +13,8 @@ factors correct it, each >= 1, and multiply the white-noise sigma:
 - :func:`misfit_scale` = ``sqrt(max(1, chi2 / dof))``: the reduced chi-square.
 
 :func:`sigma_scale` is both for a fit's residuals; :func:`mean_sigma` the honest sigma of the
-mean of a static record; :func:`moving_block_bootstrap` the distribution of any statistic by
+mean of a static record; :func:`tau_int_records` one correlation time from several records (the
+static steps of a session); :func:`moving_block_bootstrap` the distribution of any statistic by
 resampling blocks of consecutive samples (Kunsch 1989), a check that needs no model of the
 correlation.
 
@@ -55,7 +56,27 @@ def tau_int(x: np.ndarray, pooled: bool = True) -> np.ndarray | float:
     rho = autocorrelation(x)
     if pooled:
         rho = rho.mean(axis=1, keepdims=True)
-    n = rho.shape[0]
+    out = _windowed(rho, rho.shape[0])
+    return float(out[0]) if pooled else out
+
+
+def tau_int_records(records: list[np.ndarray]) -> np.ndarray:
+    """Integrated autocorrelation time (C,) per column, pooled over several records (N_i, C) of one process.
+
+    The records' autocorrelations (each about its own mean: the steps of a session, whose means
+    differ) are averaged with weights N_i up to the shortest record's length; the window and the
+    white-noise test as :func:`tau_int`, with the total sample count.
+    """
+    n_min = min(len(r) for r in records)
+    weights = np.array([len(r) for r in records], float)
+    rho = sum(w * autocorrelation(r)[:n_min] for w, r in zip(weights, records)) / weights.sum()
+    return _windowed(rho, int(weights.sum()), n_min)
+
+
+def _windowed(rho: np.ndarray, n_total: int, n_lags: int | None = None) -> np.ndarray:
+    """Sokal-windowed tau_int (C,) of autocorrelations ``rho`` (L, C); 1 where within 2 white standard errors."""
+    n = n_lags or rho.shape[0]
+    rho = rho[:n]
     out = np.ones(rho.shape[1])
     for c in range(rho.shape[1]):
         taus = 1.0 + 2.0 * np.cumsum(rho[1:, c])
@@ -65,9 +86,9 @@ def tau_int(x: np.ndarray, pooled: bool = True) -> np.ndarray | float:
             continue  # the window never closes: the record is too short to say
         k = int(ok[0])
         tau, window = float(taus[k]), int(m[k])
-        if tau > 1.0 + 2.0 * np.sqrt(4.0 * window / n):
+        if tau > 1.0 + 2.0 * np.sqrt(4.0 * window / n_total):
             out[c] = tau
-    return float(out[0]) if pooled else out
+    return out
 
 
 def ess(x: np.ndarray, pooled: bool = True) -> np.ndarray | float:

@@ -16,11 +16,12 @@ low-frequency noise that a sample standard deviation would miss.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
 
+from workbench.analysis.effective_n import tau_int_records
 from workbench.errors import AnalysisError
 from workbench.session import ACCEL, GYRO, Session, StepRecord
 
@@ -88,6 +89,7 @@ class MeanNoise:
     floor: np.ndarray
     variance: np.ndarray
     floor_limit: np.ndarray
+    tau_int: np.ndarray | None = None  # (3,) integrated autocorrelation time within the steps, samples
 
     def with_floor(self, floor: np.ndarray | float) -> MeanNoise:
         """The noise with its floor raised to at least ``floor`` (scalar or (3,), sqrt(F), u).
@@ -96,7 +98,7 @@ class MeanNoise:
         = ``0.664 B`` from the unit's Allan characterisation (IEEE 952, B its bias instability).
         """
         new = np.maximum(self.floor, np.broadcast_to(np.asarray(floor, float), (3,)))
-        return MeanNoise(self.white, new, self.variance - self.floor**2 + new**2, self.floor_limit)
+        return replace(self, floor=new, variance=self.variance - self.floor**2 + new**2)
 
 
 def mean_variance(signals: list[np.ndarray], fs: float) -> MeanNoise:
@@ -117,12 +119,23 @@ def mean_variance(signals: list[np.ndarray], fs: float) -> MeanNoise:
     not. (A rate random walk that grows over the whole session is not seen at ``T/4``; the
     scatter between positions is what can reveal it, see
     :func:`workbench.analysis.turntable.between_step_variance`.)
+
+    Correlated noise shorter than ``T/4`` (Gauss-Markov drift, a slow wobble of the fixture),
+    which the sample-to-sample differences do not see, is measured directly: the steps'
+    autocorrelation, pooled (:func:`workbench.analysis.effective_n.tau_int_records`), gives
+    ``tau_int``; on an axis where it exceeds 1 (beyond two white-noise standard errors) the
+    white level is the effective one, ``W = s^2 tau_int / fs`` (``s^2`` the pooled within-step
+    variance: a mean of ``N`` samples has the variance of ``N / tau_int`` independent ones), and
+    ``F`` is the Allan variance's excess over that (``white`` returns the effective level).
     """
     n_min = min(len(x) for x in signals)
     m = n_min // 4
     if m < 2:
         raise AnalysisError(f"steps of {n_min} samples are too short to estimate their noise")
     w = np.mean([np.diff(x, axis=0).var(axis=0) / 2.0 for x in signals], axis=0) / fs
+    corr = tau_int_records(signals)
+    s2 = np.average([x.var(axis=0, ddof=1) for x in signals], axis=0, weights=[len(x) for x in signals])
+    w = np.where(corr > 1.0, np.maximum(w, s2 * corr / fs), w)  # the effective white level
     vals, dof = [], 0
     for x in signals:
         blocks = x[: (len(x) // m) * m].reshape(-1, m, 3).mean(axis=1)
@@ -135,7 +148,7 @@ def mean_variance(signals: list[np.ndarray], fs: float) -> MeanNoise:
     triad = f.sum() > 2 * np.sqrt(np.sum(a2**2) * 2.0 / dof)  # the same test on the three axes' sum
     f = np.where(triad | (f > limit), np.maximum(f, 0.0), 0.0)
     t = np.array([len(x) / fs for x in signals])
-    return MeanNoise(np.sqrt(w), np.sqrt(f), w[None, :] / t[:, None] + f[None, :], np.sqrt(limit))
+    return MeanNoise(np.sqrt(w), np.sqrt(f), w[None, :] / t[:, None] + f[None, :], np.sqrt(limit), corr)
 
 
 def static_mean_variance(session: Session, stats: list[StepStats], triad: str, settle_s: float = 0.0) -> MeanNoise:
