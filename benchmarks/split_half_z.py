@@ -130,8 +130,9 @@ def main(argv: list[str] | None = None) -> int:
     for triad in sorted({r[0].split()[0] for r in rows}):
         zt = np.array([r[-1] for r in rows if r[0].startswith(triad + " ")])
         print(f"{triad}: {len(zt)} coefficients, rms z {np.sqrt(np.mean(zt ** 2)):.2f}, max |z| {np.abs(zt).max():.2f}")
+    shared = SHARED.get(proc.NAME, ())
     print(f"all: {len(z)} coefficients, rms z {np.sqrt(np.mean(z ** 2)):.2f}, max |z| {np.abs(z).max():.2f}"
-          + (f" (left out, shared whole steps: {', '.join(SHARED.get(proc.NAME, ()))})" if SHARED.get(proc.NAME) else ""))
+          + (f" (left out, shared whole steps: {', '.join(shared)})" if shared else ""))
     return 0
 
 

@@ -201,7 +201,8 @@ def _plain(triad: str, q: str, values, grade_sigma, est_sigma, spec) -> list[Fai
     idx = tuple(int(k) for k in bad[0])
     unit = units.unit_of(triad, q)
     return [Failure(f"{triad}.{q}", f"{triad} {q.replace('_', ' ')} {list(idx)} = {units.fmt(values[idx], unit, 3)} "
-                                    f"exceeds ±{units.fmt(lim[idx], unit, 3)} ({WIDE:g}x the {spec.name} grade's 1σ)")]
+                                    f"exceeds ±{units.fmt(lim[idx], unit, 3)} "
+                                    f"({WIDE:g}x the {spec.name} grade's 1σ)")]
 
 
 def _thermal(triad: str, tc: TriadCalibration, ts, spec) -> list[Failure]:
@@ -227,7 +228,8 @@ def _thermal(triad: str, tc: TriadCalibration, ts, spec) -> list[Failure]:
                 out.append(Failure(f"{triad}.thermal.{field}",
                                    f"{triad} thermal {field} {'xyz'[a]} (T-t_ref)^{k} = "
                                    f"{units.to_unit(coeffs[a, k], unit):.3g} {lab} exceeds "
-                                   f"±{units.to_unit(lim[a], unit):.3g} {lab} ({WIDE:g}x the {spec.name} grade's 1σ)"))
+                                   f"±{units.to_unit(lim[a], unit):.3g} {lab} "
+                                   f"({WIDE:g}x the {spec.name} grade's 1σ)"))
     return out
 
 
@@ -347,7 +349,8 @@ def _static_checks(session, spec) -> list[Failure]:
         if as_ is None:
             tol = np.sqrt(3) * GENERIC["accel"] + GENERIC_SCALE * g_site
         else:
-            tol = (np.linalg.norm(WIDE * as_.bias + _thermal_allowance(as_, dt)) + WIDE * as_.scale_factor.max() * g_site
+            tol = (np.linalg.norm(WIDE * as_.bias + _thermal_allowance(as_, dt))
+                   + WIDE * as_.scale_factor.max() * g_site
                    + 5 * np.linalg.norm(as_.noise.white) / np.sqrt(max(dur, 1e-3)))
         an = float(np.linalg.norm(a))
         if abs(an - g_site) > tol:

@@ -12,7 +12,8 @@ dropped at both ends). No orientation is known, so:
 - :func:`fit_gyro_bias`: the mean rate over the stretches, minus the Earth rate's vertical part
   (along the measured down direction, ``-Omega_e sin(lat)``); its horizontal part
   (``Omega_e cos(lat)``, heading unknown) goes into the variance. The sigma is the larger of the
-  white-noise sigma of the mean and the scatter of the stretch means (when there are several).
+  sigma of the mean (white noise, scaled by the samples' own correlation time, :mod:`effective_n`) and the
+  scatter of the stretch means (when there are several).
 
 Both return :class:`workbench.analysis.turntable.TriadFit` (residual table per stretch), so the
 multi-position procedure reports them as it does its table fits.
@@ -20,13 +21,14 @@ multi-position procedure reports them as it does its table fits.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
 from scipy.optimize import least_squares
 
 from workbench.analysis import stationarity
+from workbench.analysis.effective_n import tau_int
 from workbench.analysis.turntable import TriadFit
 from workbench.earth import EARTH_RATE
 from workbench.errors import AnalysisError
@@ -39,7 +41,9 @@ MIN_FULL, MIN_DIAG = 10, 6  # positions for the 9- and the 6-parameter norm fit
 @dataclass(frozen=True)
 class StillMean:
     """One still stretch: ``step``, ``t0``/``t1`` s, ``n`` samples, mean ``accel`` m/s^2 and ``gyro`` rad/s
-    (3,), and their per-sample standard deviations ``accel_std``, ``gyro_std`` (3,), body frame."""
+    (3,), and their per-sample standard deviations ``accel_std``, ``gyro_std`` (3,), body frame;
+    ``accel_tau``, ``gyro_tau`` (3,) the integrated autocorrelation time of the samples (1 = white;
+    :mod:`workbench.analysis.effective_n`): the mean's sigma is ``std * sqrt(tau / n)``."""
 
     step: int
     t0: float
@@ -49,6 +53,18 @@ class StillMean:
     gyro: np.ndarray
     accel_std: np.ndarray
     gyro_std: np.ndarray
+    accel_tau: np.ndarray = field(default_factory=lambda: np.ones(3))
+    gyro_tau: np.ndarray = field(default_factory=lambda: np.ones(3))
+
+    @property
+    def accel_sigma(self) -> np.ndarray:
+        """(3,) m/s^2, sigma of the mean specific force (correlation within the stretch included)."""
+        return self.accel_std * np.sqrt(self.accel_tau / self.n)
+
+    @property
+    def gyro_sigma(self) -> np.ndarray:
+        """(3,) rad/s, sigma of the mean rate (correlation within the stretch included)."""
+        return self.gyro_std * np.sqrt(self.gyro_tau / self.n)
 
 
 def still_means(session: Session, settle_s: float = 0.25) -> list[StillMean]:
@@ -71,7 +87,8 @@ def still_means(session: Session, settle_s: float = 0.25) -> list[StillMean]:
             if len(sel) < 10:
                 continue
             out.append(StillMean(st.index, float(t[sel[0]]), float(t[sel[-1]]), len(sel), a[sel].mean(axis=0),
-                                 g[sel].mean(axis=0), a[sel].std(axis=0, ddof=1), g[sel].std(axis=0, ddof=1)))
+                                 g[sel].mean(axis=0), a[sel].std(axis=0, ddof=1), g[sel].std(axis=0, ddof=1),
+                                 tau_int(a[sel], pooled=False), tau_int(g[sel], pooled=False)))
     return out
 
 
@@ -120,7 +137,7 @@ def fit_accel_norm(means: list[StillMean], gravity: float) -> TriadFit:
 
     sol = least_squares(resid, np.zeros(n_par), method="lm", x_scale="jac")
     r = sol.fun
-    noise = float(np.mean([np.linalg.norm(m.accel_std) / np.sqrt(3 * m.n) for m in means]))
+    noise = float(np.mean([np.linalg.norm(m.accel_sigma) / np.sqrt(3) for m in means]))
     dof = k - n_par
     s2 = max(float(r @ r) / dof if dof > 0 else 0.0, noise**2)
     cov = s2 * np.linalg.pinv(sol.jac.T @ sol.jac)
@@ -129,7 +146,7 @@ def fit_accel_norm(means: list[StillMean], gravity: float) -> TriadFit:
     m_sig = _sym(sig[3:]) if full else np.where(np.eye(3, dtype=bool), np.diag(sig[3:6]), np.nan)
     comp = np.linalg.solve(np.eye(3) + mm, (f - b).T).T
     ref = gravity * comp / np.linalg.norm(comp, axis=1, keepdims=True)
-    table = _residual_table(means, ref, f - ref, comp - ref, np.array([m.accel_std / np.sqrt(m.n) for m in means]),
+    table = _residual_table(means, ref, f - ref, comp - ref, np.array([m.accel_sigma for m in means]),
                             np.linalg.norm(f, axis=1) - gravity, r)
     notes = {"method": f"gravity-norm fit on {k} still stretches ({n_par} parameters; no orientation known, "
                        "the rotation part of the misalignment is not observable)"}
@@ -154,13 +171,14 @@ def fit_gyro_bias(means: list[StillMean], latitude: float) -> TriadFit:
     corrected = w - vertical
     n = np.array([m.n for m in means], float)
     bias = (corrected * n[:, None]).sum(axis=0) / n.sum()
-    white = np.sqrt(sum(m.gyro_std**2 * m.n for m in means) / n.sum()) / np.sqrt(n.sum())
+    # sigma of the sample-weighted mean of the stretch means, each with its own correlation time
+    white = np.sqrt(sum((m.n * m.gyro_sigma) ** 2 for m in means)) / n.sum()
     horizontal = EARTH_RATE * np.cos(latitude) * np.sqrt((1 - (down**2).mean(axis=0)) / 2)
     k = len(means)
     scatter = corrected.std(axis=0, ddof=1) / np.sqrt(k) if k > 1 else np.zeros(3)
     sigma = np.sqrt(np.maximum(white, scatter) ** 2 + horizontal**2 / k)
     table = _residual_table(means, vertical, w - vertical, corrected - bias,
-                            np.array([m.gyro_std / np.sqrt(m.n) for m in means]),
+                            np.array([m.gyro_sigma for m in means]),
                             np.full(k, np.nan), np.full(k, np.nan))
     notes = {"earth_rate": "vertical part removed along the measured down direction; horizontal part "
                            "(heading unknown) in the sigma",
