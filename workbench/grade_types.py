@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from workbench.errors import WorkbenchError
+from workbench.model import frozen_finite
 
 
 FIXTURES = Path(__file__).parents[1] / "fixtures" / "units"
@@ -27,11 +28,7 @@ class SpecError(WorkbenchError):
 
 # ---------------------------------------------------------------------------- dataclasses
 def _vec3(value, name: str) -> np.ndarray:
-    arr = np.broadcast_to(np.asarray(value, float), (3,)).copy()
-    if not np.all(np.isfinite(arr)):
-        raise SpecError(f"{name}: NaN or infinite value")
-    arr.setflags(write=False)
-    return arr
+    return frozen_finite(np.broadcast_to(np.asarray(value, float), (3,)).copy(), name, SpecError)
 
 
 @dataclass(frozen=True)

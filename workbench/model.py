@@ -33,14 +33,19 @@ _ZERO3 = np.zeros(3)
 COEFFICIENT_FIELDS = ("bias", "scale_misalignment", "nonlinearity", "g_sensitivity")
 
 
+def frozen_finite(arr: np.ndarray, name: str, error: type[Exception], what: str = "value") -> np.ndarray:
+    """``arr`` made read-only after checking every element is finite; else ``error`` naming ``name``."""
+    if not np.all(np.isfinite(arr)):
+        raise error(f"{name}: NaN or infinite {what}")
+    arr.setflags(write=False)
+    return arr
+
+
 def _array(value, shape: tuple[int, ...], name: str) -> np.ndarray:
     arr = np.array(value, dtype=float)
     if arr.shape != shape:
         raise CalibrationFormatError(f"{name}: expected shape {shape}, got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise CalibrationFormatError(f"{name}: NaN or infinite coefficient")
-    arr.setflags(write=False)
-    return arr
+    return frozen_finite(arr, name, CalibrationFormatError, "coefficient")
 
 
 @dataclass(frozen=True)
