@@ -12,7 +12,7 @@ null = not observed by the record). A lazily loaded session (``load_session(dir,
 analysed by :func:`workbench.analysis.allan_fit.analyze_stream` in bounded memory, with the
 same result structure (the record must then be gap-free). A record that moves (the stationarity
 detector's statistic, :mod:`workbench.analysis.stationarity`, over 10 times its threshold for at
-least one window: motion, not noise) is refused,
+least one window: motion, not noise) is refused (``span=still`` analyses its longest still stretch),
 naming the step and the motion; a ``free`` step (an imported hand-held record) is analysed when it
 is still. References: thesis (shared/seeds/000_...) tables 1.1, 1.2,
 2.1, 4.1 and eq. 3.50-3.53 (process noise from these terms).
@@ -51,6 +51,8 @@ OPTIONS = (
            "by +; k*gm repeats)"),
     Option("gmwm_bootstrap", "analysis", "int", 50, "with method gmwm: simulated records for the weighting matrix",
            ge=0),
+    Option("span", "analysis", "str", "step", "what of the hold to analyse: the whole step, or its longest still "
+           "stretch (stationarity detector; e.g. a hand-held record that starts moving)", choices=("step", "still")),
 )
 DEFAULTS = defaults(OPTIONS)
 LABEL = "allan"
@@ -80,20 +82,28 @@ def _hold_step(session):
     return max(holds, key=lambda s: s.duration)
 
 
-def _refuse_motion(session, step) -> None:
-    """Raise AnalysisError naming the step and the motion seen when the record moves (an Allan deviation of a
-    moving record is the motion's, not the noise's)."""
+def _still_span(session, step, span: str) -> slice:
+    """The rows of the step to analyse: all of them, or (``span="still"``) its longest still stretch.
+
+    With ``span="step"`` a record that moves raises AnalysisError naming the step and the motion seen (an Allan
+    deviation of a moving record is the motion's, not the noise's)."""
     df = session.step_samples(step.index)
     if len(df) < session.sample_rate_hz:
-        return
+        return slice(0, len(df))
     gyro, accel = df[GYRO].to_numpy(float), df[ACCEL].to_numpy(float)
     found = detect(gyro, accel, session.sample_rate_hz)
+    where = f"{session.name}: step {step.index} ({step.kind}{f', {step.label}' if step.label else ''})"
+    if span == "still":
+        if not found.stretches:
+            raise AnalysisError(f"{where}: no still stretch (the stationarity detector finds none)")
+        a, b = max(found.stretches, key=lambda r: r[1] - r[0])
+        return slice(a, b)
     # not the detector's still/moving split alone: its false alarms (1e-3 per window) and an axis whose noise is
     # far from Gaussian (coarse quantisation) cut a still record too; a window 10x over the threshold cannot be noise
     if np.count_nonzero(found.statistic > GROSS_MOTION * found.threshold) >= found.window:
-        raise AnalysisError(f"{session.name}: step {step.index} ({step.kind}{f', {step.label}' if step.label else ''}): "
-                            f"the unit moves: {moving_summary(found, df['t'].to_numpy(float), gyro)}; "
-                            "Allan variance needs a still record")
+        raise AnalysisError(f"{where}: the unit moves: {moving_summary(found, df['t'].to_numpy(float), gyro)}; "
+                            "Allan variance needs a still record (-o span=still analyses its longest still stretch)")
+    return slice(0, len(df))
 
 
 def analyze(session, **options) -> ProcedureResult:
@@ -104,8 +114,9 @@ def analyze(session, **options) -> ProcedureResult:
     o = check_options(NAME, OPTIONS, options, "analysis")
     taus, gap_policy = o["taus"], o["gap_policy"]
     step = _hold_step(session)
-    if session.samples is not None:
-        _refuse_motion(session, step)
+    if session.samples is None and o["span"] == "still":
+        raise AnalysisError(f"{session.name}: span=still needs the record in memory (it is loaded lazily)")
+    rows = _still_span(session, step, o["span"]) if session.samples is not None else None
     rate = float(session.sample_rate_hz)
     analyses: dict[str, AllanAnalysis] = {}
     for triad, cols, data in (("gyro", GYRO, session.gyro), ("accel", ACCEL, session.accel)):
@@ -114,29 +125,35 @@ def analyze(session, **options) -> ProcedureResult:
             analyses[triad] = analyze_stream(lambda c=cols: session.stream(c, step.index, STREAM_ROWS), rate, cols,
                                              triad, taus, src)
         else:
-            analyses[triad] = analyze_record(data(step.index), rate, cols, triad, taus, gap_policy, src)
+            analyses[triad] = analyze_record(data(step.index)[rows], rate, cols, triad, taus, gap_policy, src)
     blocks = {t: a.noise_block() for t, a in analyses.items()}
-    gmwm = _gmwm(session, step, o, analyses) if o["method"] == "gmwm" else {}
+    gmwm = _gmwm(session, step, o, analyses, rows) if o["method"] == "gmwm" else {}
     blocks.update({t: g.noise_block() for t, g in gmwm.items()})
+    duration, lines = step.duration, []
+    if rows is not None and o["span"] == "still":
+        t = session.step_samples(step.index)["t"].to_numpy(float)[rows]
+        duration = float(t[-1] - t[0])
+        lines.append(f"analysed: the longest still stretch of step {step.index}, t = {t[0]:.2f}..{t[-1]:.2f} s "
+                     f"({duration:.1f} s)")
     cal = CalibrationSet(unit=session.unit, noise=blocks,
-                         notes={NAME: {"sample_rate_hz": rate, "duration_s": step.duration,
-                                       "temperature_c": step.temperature_c}})
-    result = _result_dict(analyses, step)
+                         notes={NAME: {"sample_rate_hz": rate, "duration_s": duration,
+                                       "temperature_c": step.temperature_c, "span": o["span"]}})
+    result = {**_result_dict(analyses, step), "duration_s": duration, "span": o["span"]}
     if gmwm:  # the noise block above is GMWM's; the IEEE 952 terms stay in result[triad]["terms"]
         result["gmwm"] = {t: g.to_dict() for t, g in gmwm.items()}
     return ProcedureResult(NAME, result=result, calibration=cal, payload=analyses,
-                           summary=_summary(analyses) + [line for g in gmwm.values() for line in g.summary()],
+                           summary=lines + _summary(analyses) + [line for g in gmwm.values() for line in g.summary()],
                            warnings=[w for a in analyses.values() for w in a.warnings])
 
 
-def _gmwm(session, step, o, analyses) -> dict:
+def _gmwm(session, step, o, analyses, rows: slice | None) -> dict:
     """``method=gmwm``: the GMWM fit of every triad analysed (in memory only)."""
     from workbench.analysis.gmwm_record import analyze_gmwm
 
     if session.samples is None:
         raise AnalysisError(f"{session.name}: method gmwm needs the record in memory (not a lazily loaded session)")
     data = {"gyro": (GYRO, session.gyro), "accel": (ACCEL, session.accel)}
-    return {t: analyze_gmwm(data[t][1](step.index), float(session.sample_rate_hz), data[t][0], t, o["gmwm_model"],
+    return {t: analyze_gmwm(data[t][1](step.index)[rows], float(session.sample_rate_hz), data[t][0], t, o["gmwm_model"],
                             o["gmwm_bootstrap"], o["gap_policy"], f"{session.name}: step {step.index} ({t})")
             for t in analyses}
 

@@ -6,6 +6,7 @@ whole free step is analysed. Still holds of every grade pass (checked for each f
 statistic stays under 10x the detector's threshold, which only motion reaches).
 """
 
+import numpy as np
 import pytest
 
 import procedures.allan as proc
@@ -39,3 +40,15 @@ def test_cli_exit_2_one_line_nothing_written(tmp_path, monkeypatch, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "the unit moves" in err[0] and "Traceback" not in err[0]
     assert sorted(p.name for p in folder.iterdir()) == before
+
+
+def test_span_still_analyses_the_longest_still_stretch():
+    session, truth = handheld_session(UNIT, 9, duration_s=30.0, still_s=20.0)  # 20 s still, a 2-s tumble, still
+    with pytest.raises(AnalysisError, match="span=still"):
+        proc.analyze(session)
+    result = proc.analyze(session, span="still")
+    t = session.samples["t"].to_numpy()
+    first_move = t[np.argmax(~truth.still)]
+    # the stretch ends half a window (0.25 s) or so before the tumble starts
+    assert first_move - 1.0 < result.result["duration_s"] <= first_move
+    assert result.summary[0].startswith("analysed: the longest still stretch of step 0")

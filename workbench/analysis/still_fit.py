@@ -36,6 +36,7 @@ from workbench.session import Session
 
 _NAN3 = np.full(3, np.nan)
 MIN_FULL, MIN_DIAG = 10, 6  # positions for the 9- and the 6-parameter norm fit
+MAX_BIAS_SIGMA, MAX_SCALE_SIGMA = 0.5, 0.05  # m/s^2 and dimensionless: beyond, the positions do not observe the fit
 
 
 @dataclass(frozen=True)
@@ -142,6 +143,14 @@ def fit_accel_norm(means: list[StillMean], gravity: float) -> TriadFit:
     s2 = max(float(r @ r) / dof if dof > 0 else 0.0, noise**2)
     cov = s2 * np.linalg.pinv(sol.jac.T @ sol.jac)
     sig = np.sqrt(np.clip(np.diag(cov), 0, None))
+    if not np.all(np.isfinite(sig)) or sig[:3].max() > MAX_BIAS_SIGMA or sig[3:].max() > MAX_SCALE_SIGMA:
+        d = -f / np.linalg.norm(f, axis=1, keepdims=True)
+        mean = d.mean(axis=0) / np.linalg.norm(d.mean(axis=0))
+        span = float(np.degrees(np.arccos(np.clip(d @ mean, -1, 1)).max()))
+        raise AnalysisError(f"accelerometer norm fit: the {k} still orientations (gravity within {span:.0f}° of their "
+                            f"mean direction) do not determine bias and scale factors (largest sigma: bias "
+                            f"{sig[:3].max():.3g} m/s², scale/misalignment {sig[3:].max():.3g}); set the unit down with "
+                            "each axis up and down")
     b, mm = unpack(sol.x)
     m_sig = _sym(sig[3:]) if full else np.where(np.eye(3, dtype=bool), np.diag(sig[3:6]), np.nan)
     comp = np.linalg.solve(np.eye(3) + mm, (f - b).T).T
