@@ -40,6 +40,28 @@ _FACTORS = {
     # virtual-lab imperfections (a grade's imperfections block): scale-factor drift, noise per °C
     "ppm/h": 1e-6 / HOUR, "%/h": 1e-2 / HOUR, "1/degC": 1.0, "%/degC": 1e-2,
 }
+# the SI unit each lab unit is a multiple of (for checks such as "is this a unit of rate?")
+_SI_UNITS = {
+    "rad/s": ("rad/s", "deg/s", "deg/h"), "rad": ("rad", "deg", "mrad", "urad", "arcsec"),
+    "m/s^2": ("m/s^2", "g", "mg", "ug"), "uT": ("uT", "ut", "nT", "gauss", "mgauss", "T"),
+    "m/s": ("m/s", "cm/s", "mm/s"), "m": ("m", "cm", "mm"), "degC": ("degC",), "s": ("s",), "Hz": ("Hz",),
+    "1": ("1", "ppm", "%"),
+}
+_SI_OF = {u: si for si, members in _SI_UNITS.items() for u in members}
+
+
+def si_unit(unit: str) -> str | None:
+    """The SI unit ``unit`` is a multiple of (``'deg/h'`` -> ``'rad/s'``, ``'gauss'`` -> ``'uT'``); None for a
+    compound unit outside the table (noise densities, ratios of rates)."""
+    factor(unit)  # an unknown unit is an error, not None
+    return _SI_OF.get(unit)
+
+
+def units_of(si: str) -> tuple[str, ...]:
+    """The lab units of the SI unit ``si`` (``'rad/s'`` -> ``('rad/s', 'deg/s', 'deg/h')``)."""
+    return _SI_UNITS[si]
+
+
 LABELS = {"deg/sqrt(h)": "°/√h", "deg/h": "°/h", "deg/s": "°/s", "ug/sqrt(Hz)": "µg/√Hz", "ug": "µg",
           "uT": "µT", "ut": "µT", "deg": "°", "m/s/sqrt(h)": "m/s/√h", "deg/h/sqrt(h)": "°/h/√h",
           "m/s/h/sqrt(h)": "m/s/h/√h", "ug/sqrt(h)": "µg/√h", "deg/h/h": "°/h²", "m/s^3": "m/s³", "ug/h": "µg/h",

@@ -58,3 +58,17 @@ def test_one_unit_per_figure_and_thermal_labels():
     assert units.show("gyro", "bias", 1e-5, np.nan).endswith("(σ not observed) °/h")
     assert units.thermal_label("gyro", "bias_poly", 2) == "°/h/°C²"
     assert units.thermal_label("accel", "scale_poly", 1) == "ppm/°C"
+
+
+def test_si_unit_of_each_lab_unit():
+    from workbench.units import factor, si_unit, units_of
+
+    assert si_unit("deg/h") == "rad/s" and si_unit("gauss") == "uT" and si_unit("mg") == "m/s^2"
+    assert si_unit("deg/sqrt(h)") is None  # a noise density: outside the table
+    for si in ("rad/s", "rad", "m/s^2", "uT", "m/s", "m", "degC"):
+        assert si in units_of(si) and factor(si) == 1.0  # the SI unit itself has factor 1
+        assert all(si_unit(u) == si for u in units_of(si))
+    import pytest
+
+    with pytest.raises(ValueError, match="unknown unit 'furlong'"):
+        si_unit("furlong")
