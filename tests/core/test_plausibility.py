@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import types
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -194,3 +195,39 @@ def test_gate_passes_a_plausible_set_unchanged():
     assert [f.text for f in check(_mag_set(norm=9.66, model="MARG"))] == [
         "mag field norm 9.66 µT is outside 20-70 µT (the Earth's field)"]
     assert json.loads(cal.to_json()).get("notes") is None
+
+
+# -- the issue's own case, on the real recording: a hand-held tumble declared as a by-hand turn -------------
+ROOT = Path(__file__).resolve().parents[2]
+MARG = next((p / "shared" / "data" / "marg_mpu6050_hmc5883l" for p in (ROOT.parent, ROOT.parent.parent)
+             if (p / "shared" / "data" / "marg_mpu6050_hmc5883l").exists()), None)
+
+
+@pytest.mark.skipif(MARG is None, reason="shared/data/marg_mpu6050_hmc5883l is not beside the checkout")
+def test_hand_held_tumble_declared_as_a_turn_is_refused(tmp_path, db, capsys):
+    # issue 21: tilt-sphere declared as one by-hand turn: the table-less rate step makes the magnetometer fit
+    # trust an attitude it does not have; soft iron ~250-290 %, nothing may be stored
+    text = (ROOT / "fixtures" / "import_profiles" / "marg_mpu6050_hmc5883l.yaml").read_text()
+    text += ("sections:\n  steps:\n    turn: {kind: rate, mount: z-down, axis: z, turn_deg: 360.0, by_hand: true}\n"
+             "  inline: {turn: [0, 5000]}\n")
+    profile = tmp_path / "turn.yaml"
+    profile.write_text(text)
+    session = tmp_path / "s"
+    assert main(["import", str(profile), str(MARG / "tilt-sphere"), "--out", str(session)]) == 0
+    capsys.readouterr()
+    out = tmp_path / "cal.json"
+    err = _one_line_exit_2(capsys, ["analyze", "magnetometer", str(session), "--out", str(out)])
+    assert "mag soft iron |M| = " in err and db.list_sets() == [] and not out.exists()
+    assert main(["analyze", "magnetometer", str(session), "--out", str(out), "--force"]) == 0
+    assert "mag soft iron" in forced_failures(db.latest("marg-mpu6050-hmc5883l"))[0]
+    assert "mag soft iron" in forced_failures(CalibrationSet.load(out))[0]
+
+
+@pytest.mark.skipif(MARG is None, reason="shared/data/marg_mpu6050_hmc5883l is not beside the checkout")
+def test_real_recordings_pass(tmp_path, db, capsys):
+    # the same board analysed as what it is (free steps): magnetometer and gyro bias are stored unforced
+    profile = ROOT / "fixtures" / "import_profiles" / "marg_mpu6050_hmc5883l.yaml"
+    for name, proc in (("tilt-sphere", "magnetometer"), ("unmoved-x-pointing-up", "multiposition")):
+        assert main(["import", str(profile), str(MARG / name), "--out", str(tmp_path / name)]) == 0
+        assert main(["analyze", proc, str(tmp_path / name)]) == 0, capsys.readouterr().err
+    assert [forced_failures(db.get_set(i.id)) for i in db.list_sets()] == [[], []]
