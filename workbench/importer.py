@@ -102,6 +102,7 @@ def _free_steps(t: np.ndarray, rate: float) -> tuple[np.ndarray, list[StepRecord
 def _read_streams(prof: Mapping, profile_path: Path, data: Path) -> dict[str, Stream]:
     reader = prof.get("reader") or {}
     out = {}
+    clocks: dict = {}  # arrival-clock fits by stamps, shared by the streams of one read
     for name, spec in stream_specs(prof).items():
         if name == SINGLE and "streams" not in prof:
             if data.is_dir() and (prof.get("reader") or {}).get("type") != "rosbag":  # a ROS 2 bag is a folder
@@ -113,7 +114,7 @@ def _read_streams(prof: Mapping, profile_path: Path, data: Path) -> dict[str, St
                                      "data folder")
             where = f"{profile_path}: streams.{name}"
             path = confined_path(data, spec["file"], f"{where}.file", ImportProfileError)
-        out[name] = read_stream(name, spec, path, reader, where)
+        out[name] = read_stream(name, spec, path, reader, where, clocks)
     return out
 
 

@@ -92,7 +92,18 @@ def convert(raw: pd.DataFrame, columns: Mapping, where: str) -> pd.DataFrame:
     return pd.DataFrame(out)
 
 
-def _instants(raw: pd.DataFrame, spec: Mapping, where: str) -> tuple[np.ndarray, ClockFit | None, np.ndarray]:
+def _clock(t: np.ndarray, rate: float | None, where: str, clocks: dict) -> ClockFit:
+    """The clock fit of stamps ``t``, reused from ``clocks`` when another stream had the same stamps."""
+    import hashlib
+
+    key = (hashlib.sha1(t.tobytes()).hexdigest(), rate)
+    if key not in clocks:
+        clocks[key] = fit_arrival_clock(t, rate, where)
+    return clocks[key]
+
+
+def _instants(raw: pd.DataFrame, spec: Mapping, where: str,
+              clocks: dict) -> tuple[np.ndarray, ClockFit | None, np.ndarray]:
     """Sampling instants (s, first = raw stamp), the clock fit for arrival stamps, the sample counter."""
     tspec = spec.get("time") or {}
     rate = spec.get("rate_hz")
@@ -100,7 +111,7 @@ def _instants(raw: pd.DataFrame, spec: Mapping, where: str) -> tuple[np.ndarray,
     if "column" in tspec:
         t = _column(raw, tspec["column"], f"{where}: time.column") * TIME_UNITS[tspec.get("unit", "s")]
         if tspec.get("stamps", "sample") == "arrival":
-            clock = fit_arrival_clock(t, rate, f"{where}: time.column {tspec['column']!r}")
+            clock = _clock(t, rate, f"{where}: time.column {tspec['column']!r}", clocks)
             return clock.instants, clock, np.arange(n)  # sections count the file's rows
         return t, None, np.arange(n)
     if "counter" in tspec:
@@ -109,8 +120,12 @@ def _instants(raw: pd.DataFrame, spec: Mapping, where: str) -> tuple[np.ndarray,
     return np.arange(n) / float(rate), None, np.arange(n)
 
 
-def read_stream(name: str, spec: Mapping, path: Path, reader: Mapping, where: str) -> Stream:
-    """Read stream ``name`` from ``path`` as ``spec`` (a checked profile entry) says; ``where`` names it in errors."""
+def read_stream(name: str, spec: Mapping, path: Path, reader: Mapping, where: str,
+                clocks: dict | None = None) -> Stream:
+    """Read stream ``name`` from ``path`` as ``spec`` (a checked profile entry) says; ``where`` names it in errors.
+
+    ``clocks`` (shared by the streams of one recording) keeps the arrival-clock fits by stamps, so
+    files of one read (the same stamps) are fitted once."""
     reader = {**reader, **(spec.get("reader") or {})}
     raw = read_log(path, reader, where)
     trailing = 0
@@ -122,7 +137,7 @@ def read_stream(name: str, spec: Mapping, path: Path, reader: Mapping, where: st
     if len(raw) == 0:
         raise ImportProfileError(f"{where}: {path.name}: no rows")
     values = convert(raw, spec["columns"], where)
-    t, clock, index = _instants(raw, spec, where)
+    t, clock, index = _instants(raw, spec, where, {} if clocks is None else clocks)
     if np.any(np.diff(t) <= 0):
         row = int(np.argmax(np.diff(t) <= 0)) + 1
         raise ImportProfileError(f"{where}: time: duplicate or non-increasing time at row {row} (t={t[row]})")
