@@ -124,7 +124,8 @@ def _ulog_msg(kind: bytes, payload: bytes) -> bytes:
     return struct.pack("<HB", len(payload), kind[0]) + payload
 
 
-def _write_ulog(path: Path) -> None:
+def _write_ulog(path: Path, rel_us: int = 0) -> None:
+    """sensor_combined and sensor_mag at T; ``rel_us`` the accelerometer_timestamp_relative."""
     out = bytearray(b"ULog\x01\x12\x35" + bytes([1]) + struct.pack("<Q", int(T[0] * 1e6)))
     out += _ulog_msg(b"B", bytes(8) + bytes(8) + bytes(24))  # flag bits: no incompatibilities, no appended data
     fmt = "sensor_combined:uint64_t timestamp;float[3] gyro_rad;uint32_t gyro_integral_dt;" \
@@ -138,7 +139,7 @@ def _write_ulog(path: Path) -> None:
     out += _ulog_msg(b"A", struct.pack("<BH", 0, 1) + b"sensor_mag")
     for i, ti in enumerate(T):
         us = int(round(ti * 1e6))
-        out += _ulog_msg(b"D", struct.pack("<H", 0) + struct.pack("<Q3fIi3fIB", us, *GYRO[i], 4000, 0, *ACCEL[i],
+        out += _ulog_msg(b"D", struct.pack("<H", 0) + struct.pack("<Q3fIi3fIB", us, *GYRO[i], 4000, rel_us, *ACCEL[i],
                                                                    4000, 0))  # trailing padding not logged
         out += _ulog_msg(b"D", struct.pack("<H", 1) + struct.pack("<QQI4fIB", us, us, 1, *(MAG[i] * 1e4), 25.0, 0,
                                                                    0))  # gauss
@@ -156,6 +157,15 @@ def test_px4_ulog(tmp_path, capsys):
            "time": {"column": "timestamp_sample", "unit": "us"},
            "columns": {f"m{c}": {"column": c, "unit": "gauss"} for c in "xyz"}}
     _check(tmp_path, capsys, {"time_base": "imu", "streams": {"imu": imu, "mag": mag}}, tmp_path / "d")
+
+
+def test_ulog_sensor_combined_gives_the_accelerometer_its_own_time(tmp_path):
+    from workbench.importers.readers import read_log
+
+    _write_ulog(tmp_path / "log.ulg", rel_us=700)
+    df = read_log(tmp_path / "log.ulg", {"type": "ulog", "message": "sensor_combined"}, "imu")
+    assert np.array_equal(df["accelerometer_timestamp"], df["timestamp"] + 700)
+    assert np.allclose(df["timestamp"] * 1e-6, T, atol=1e-6)
 
 
 # -- ArduPilot DataFlash: FMT records, then IMU and MAG records (pymavlink's format characters) --------

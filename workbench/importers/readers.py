@@ -12,7 +12,9 @@ A stream's ``reader.type`` picks one; the table then goes through the same ``tim
   and ``log_time`` (s, when the recorder received it: an arrival stamp).
 - ``ulog``: a PX4 ULog, read with ``pyulog`` (``message``: ``sensor_combined``, ``sensor_accel``,
   ``sensor_gyro``, ``sensor_mag``; ``multi_id``, default 0): the message's fields as logged
-  (``timestamp`` in us, ``gyro_rad[0]``, ``x``, ...).
+  (``timestamp`` in us, ``gyro_rad[0]``, ``x``, ...); ``sensor_combined`` also gets
+  ``accelerometer_timestamp`` (us: ``timestamp + accelerometer_timestamp_relative``), the
+  accelerometer's own sample time, for a stream of its accelerometer fields.
 - ``dataflash``: an ArduPilot DataFlash ``.bin`` log, read with ``pymavlink`` (``message``: ``IMU``,
   ``MAG``; ``instance``: the ``I`` field, default 0): its fields (``TimeUS`` in us, ``GyrX``, ``AccX``,
   ``MagX`` in mGauss, ...).
@@ -32,6 +34,7 @@ from workbench.errors import ImportProfileError, WorkbenchError
 READER_TYPES = ("csv", "parquet", "rosbag", "ulog", "dataflash")
 READER_KEYS = {"csv": {"delimiter", "skip_rows", "comment"}, "parquet": set(), "rosbag": {"topic"},
                "ulog": {"message", "multi_id"}, "dataflash": {"message", "instance"}}
+RELATIVE_INVALID = 2**31 - 1  # sensor_combined's accelerometer_timestamp_relative when there is no accelerometer
 REQUIRED_KEYS = {"rosbag": ("topic",), "ulog": ("message",), "dataflash": ("message",)}
 
 
@@ -79,7 +82,11 @@ def _read_ulog(path: Path, message: str, multi_id: int, where: str) -> pd.DataFr
     names = sorted({(d.name, d.multi_id) for d in log.data_list})
     for d in log.data_list:
         if d.name == message and d.multi_id == multi_id:
-            return pd.DataFrame(d.data)
+            df = pd.DataFrame(d.data)
+            if "accelerometer_timestamp_relative" in df:  # sensor_combined: the accelerometer's own sample time
+                rel = df["accelerometer_timestamp_relative"].astype("int64")
+                df["accelerometer_timestamp"] = df["timestamp"].astype("int64") + rel.where(rel != RELATIVE_INVALID, 0)
+            return df
     raise ImportProfileError(f"{where}: reader.message {message!r} (multi_id {multi_id}) not in {path.name} "
                              f"(messages: {', '.join(f'{n}[{i}]' for n, i in names) or 'none'})")
 
