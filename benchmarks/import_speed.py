@@ -43,11 +43,13 @@ def main() -> None:
         t = t[keep]
         a = arrival_stamps(t, 1)
         m = len(t)
-        _write(d / "accelerometer.csv", "t_s,ax_g,ay_g,az_g", a, np.c_[0.01 * rng.standard_normal((m, 2)), 1 + 0.01 * rng.standard_normal(m)])
+        acc = np.c_[0.01 * rng.standard_normal((m, 2)), 1 + 0.01 * rng.standard_normal(m)]
+        _write(d / "accelerometer.csv", "t_s,ax_g,ay_g,az_g", a, acc)
         _write(d / "gyroscope.csv", "t_s,gx_dps,gy_dps,gz_dps", a, 0.3 * rng.standard_normal((m, 3)))
         _write(d / "temperature.csv", "t_s,temp_c", a, 23 + 0.01 * rng.standard_normal((m, 1)))
         tm = 1.0 + np.arange(int(hours * 3600 * 77)) / 77.0
-        tm = tm[~(((tm > t[n // 3 - 1]) & (tm < t[n // 3])) | ((tm > t[2 * n // 3 - 201]) & (tm < t[2 * n // 3 - 200])))]
+        pauses = ((tm > t[n // 3 - 1]) & (tm < t[n // 3])) | ((tm > t[2 * n // 3 - 201]) & (tm < t[2 * n // 3 - 200]))
+        tm = tm[~pauses]
         _write(d / "magnetometer.csv", "t_s,mx_gauss,my_gauss,mz_gauss", arrival_stamps(tm, 2),
                np.c_[0.2 + 0.002 * rng.standard_normal(len(tm)), 0.002 * rng.standard_normal(len(tm)), 0.43 + 0 * tm])
         c0, w0 = time.process_time(), time.perf_counter()

@@ -158,7 +158,8 @@ def fit_arrival_clock(arrival: np.ndarray, nominal_rate_hz: float | None, where:
         raise ImportProfileError(f"{where}: arrival stamps: need at least 4 samples, got {len(a)}")
     if np.any(np.diff(a) < 0):
         row = int(np.argmax(np.diff(a) < 0)) + 1
-        raise ImportProfileError(f"{where}: arrival stamps go back in time at row {row} ({a[row]!r} s)")
+        raise ImportProfileError(f"{where}: arrival stamps go back in time at row {row} ({float(a[row])!r} s; "
+                                 f"row {row - 1}: {float(a[row - 1])!r} s)")
     period = 1.0 / nominal_rate_hz if nominal_rate_hz else (a[-1] - a[0]) / (len(a) - 1)
     offsets = np.zeros(len(a), dtype=np.int64)  # lost samples before each row
     width = max(20, int(round(1.0 / period)))  # one second of samples for the running minimum
