@@ -10,6 +10,9 @@ fixed either by a reference field norm (the site's field, when the caller gives 
 convention, by ``det(I + M) = 1`` (volume-preserving soft iron, ``F`` the geometric-mean
 radius of the ellipsoid); :attr:`MagFit.scale_fixed_by` says which.
 
+Sigmas: ``s^2 inv(J^T J)`` times the residuals' integrated autocorrelation time
+(:mod:`workbench.analysis.effective_n`: 1 for white residuals, the points' time order).
+
 Robustness (every estimator goes through :func:`solve`): ``robust=True`` fits with a Cauchy
 loss whose scale is the residuals' noise (MAD), rejects points beyond 5 robust sigma and refits
 by least squares on the rest; ``robust="auto"`` (the procedure's default) fits by least squares
@@ -29,6 +32,7 @@ import numpy as np
 from scipy.linalg import polar
 from scipy.spatial.transform import Rotation
 
+from workbench.analysis.effective_n import tau_int
 from workbench.errors import AnalysisError
 from workbench.model import TriadModel
 
@@ -237,7 +241,7 @@ def solve(resid: Callable[[np.ndarray, np.ndarray], np.ndarray], p0: np.ndarray,
         sol = least_squares(lambda q: full(q, idx), p, method="lm", x_scale="jac")
         r = resid(sol.x, idx)
         if not heavy_tails(r, reject_sigma):
-            return Solution(sol.x, lsq_covariance(sol.jac, r.ravel()), r, inliers)
+            return Solution(sol.x, _covariance(sol.jac, r), r, inliers)
     if robust:
         sol = least_squares(lambda q: full(q, idx), p, loss="cauchy", f_scale=noise, x_scale="jac")
         p = sol.x
@@ -245,7 +249,15 @@ def solve(resid: Callable[[np.ndarray, np.ndarray], np.ndarray], p0: np.ndarray,
     keep = idx[inliers]
     sol = least_squares(lambda q: full(q, keep), p, method="lm", x_scale="jac")
     r = resid(sol.x, keep)
-    return Solution(sol.x, lsq_covariance(sol.jac, r.ravel()), r, inliers)
+    return Solution(sol.x, _covariance(sol.jac, r), r, inliers)
+
+
+def _covariance(jac: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """:func:`lsq_covariance` scaled by the residuals' integrated autocorrelation time (the largest of their k
+    columns; 1 for white residuals), so that correlated residuals (a hand-held record, a drifting field) do not
+    count as independent points. ``r`` (N, k) in the points' time order."""
+    scale = float(np.max(tau_int(r, pooled=False))) if len(r) > 3 else 1.0
+    return lsq_covariance(jac, r.ravel()) * scale
 
 
 def build_fit(method: str, sol: Solution, unpack: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
