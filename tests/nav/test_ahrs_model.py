@@ -102,3 +102,21 @@ def test_disturbed_intervals_are_the_runs_of_flagged_epochs():
     res = AhrsResult(t, Rotation.identity(8), np.zeros((8, 3)), np.zeros((8, 3)), np.zeros((8, 3)), np.zeros((8, 3)),
                      "kalman", np.ones(8), flags, (48.0, 1.0))
     assert res.disturbed_intervals() == [(0.5, 1.0), (2.5, 2.5), (3.5, 3.5)]
+
+
+def test_result_protocol_end_state_in_lab_units():
+    from workbench.result import AnalysisResult
+
+    t = np.arange(4) * 0.1
+    rph = np.tile(np.radians([1.0, -2.0, 30.0]), (4, 1))
+    bias = np.tile(np.array([1.0, 2.0, 3.0]) * np.radians(1.0) / 3600.0, (4, 1))  # 1, 2, 3 °/h
+    res = AhrsResult(t, Rotation.identity(4), rph, np.full((4, 3), np.radians(0.1)), bias, np.full((4, 3), np.nan),
+                     "kalman", np.ones(4), np.array([0, 1, 1, 0], bool), (48.0, 1.0))
+    assert isinstance(res, AnalysisResult)
+    d = res.to_dict()
+    assert d["rph"] == pytest.approx(list(np.radians([1.0, -2.0, 30.0]))) and d["gyro_bias_sigma"] == [None] * 3
+    assert d["mag_disturbances"] == [[0.1, 0.2]] and d["t_end"] == pytest.approx(0.3)
+    lines = res.summary()
+    assert lines[0] == "kalman: roll, pitch, heading at 0.3 s: 1.000, -2.000, 30.000 ± 0.1, 0.1, 0.1 °"
+    assert lines[1] == "kalman: gyro bias x 1 °/h, y 2 °/h, z 3 °/h"
+    assert lines[2] == "kalman: field disturbed 0.2 s in 1 interval(s)"

@@ -92,6 +92,35 @@ class AhrsResult:
     mag_weight: np.ndarray
     mag_disturbed: np.ndarray
     mag_reference: tuple[float, float]
+    warnings: tuple[str, ...] = ()
+
+    def to_dict(self) -> dict:
+        """The end state, JSON-ready (SI; NaN -> None): time, roll/pitch/heading and their sigmas (rad),
+        gyro bias and sigma (rad/s), the field reference (µT, rad) and the disturbed intervals (s)."""
+        def num(a):
+            return [float(v) if np.isfinite(v) else None for v in np.ravel(a)]
+
+        return {"filter": self.filter, "t_end": float(self.t[-1]), "rph": num(self.rph[-1]),
+                "attitude_sigma": num(self.attitude_sigma[-1]), "gyro_bias": num(self.gyro_bias[-1]),
+                "gyro_bias_sigma": num(self.gyro_bias_sigma[-1]), "mag_reference": num(self.mag_reference),
+                "mag_disturbances": [list(iv) for iv in self.disturbed_intervals()], "warnings": list(self.warnings)}
+
+    def summary(self) -> list[str]:
+        """Lines for people: the end attitude (°) with its 1-sigma, the gyro bias (°/h), the disturbed time (s)."""
+        from workbench import units
+
+        def angles(v, s):
+            sig = "" if not np.isfinite(s).any() else " ± " + ", ".join(f"{x:.2g}" for x in np.degrees(s))
+            return ", ".join(f"{x:.3f}" for x in np.degrees(v)) + sig + " °"
+
+        dt = float(np.median(np.diff(self.t))) if len(self.t) > 1 else 0.0
+        return [f"{self.filter}: roll, pitch, heading at {self.t[-1]:.1f} s: "
+                f"{angles(self.rph[-1], self.attitude_sigma[-1])}",
+                f"{self.filter}: gyro bias " + ", ".join(
+                    f"{a} {units.show('gyro', 'bias', b, s if np.isfinite(s) else None)}"
+                    for a, b, s in zip("xyz", self.gyro_bias[-1], self.gyro_bias_sigma[-1])),
+                f"{self.filter}: field disturbed {dt * int(np.sum(self.mag_disturbed)):.1f} s "
+                f"in {len(self.disturbed_intervals())} interval(s)"]
 
     def disturbed_intervals(self) -> list[tuple[float, float]]:
         """(start, end) s of the runs of update epochs whose field was detected as disturbed."""
