@@ -95,6 +95,7 @@ def test_a_four_stream_folder_imports_as_one_free_step(tmp_path, capsys):
     ("time_base", "imu", r"time_base 'imu': must name one of the streams"),
     ("streams.temperature.columns.ax", {"column": "temp_c", "unit": "g"}, r"columns\.ax: already given by stream"),
     ("streams.mag.rate_hz", -3, r"streams\.mag\.rate_hz: expected a finite number"),
+    ("streams.mag.rate_hz", 150, r"streams\.mag: rate_hz 150 Hz: the arrival stamps give 75(\.\d+)? Hz \(more than 10% off"),
 ])
 def test_bad_profiles_are_one_line_exit_2_and_nothing_written(tmp_path, capsys, key, value, match):
     data = _folder(tmp_path)

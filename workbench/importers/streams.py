@@ -31,6 +31,7 @@ TRIAD_OF = {**{c: "gyro" for c in GYRO}, **{c: "accel" for c in ACCEL}, **{c: "m
 SI_UNIT = {**{c: "rad/s" for c in GYRO}, **{c: "m/s^2" for c in ACCEL}, **{c: "uT" for c in MAG},
            "temp": "degC", "table_angle": "rad", "table_rate": "rad/s"}
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
+RATE_TOLERANCE = 0.10  # a declared rate_hz this far from the stamps' is refused (hobby clocks: a few % off)
 
 
 @dataclass(frozen=True)
@@ -112,6 +113,9 @@ def _instants(raw: pd.DataFrame, spec: Mapping, where: str,
         t = _column(raw, tspec["column"], f"{where}: time.column") * TIME_UNITS[tspec.get("unit", "s")]
         if tspec.get("stamps", "sample") == "arrival":
             clock = _clock(t, rate, f"{where}: time.column {tspec['column']!r}", clocks)
+            if rate and abs(clock.rate_hz - rate) > RATE_TOLERANCE * rate:
+                raise ImportProfileError(f"{where}: rate_hz {rate:g} Hz: the arrival stamps give {clock.rate_hz:.4g} Hz "
+                                         f"(more than {RATE_TOLERANCE:.0%} off; a wrong file or rate?)")
             return clock.instants, clock, np.arange(n)  # sections count the file's rows
         return t, None, np.arange(n)
     if "counter" in tspec:
