@@ -24,7 +24,7 @@ from workbench.calset import CalibrationSet, Unit, atomic_write_text, merge
 from workbench.errors import ProcedureError, WorkbenchError
 from workbench.options import declarations, rig_options, split, validate
 from workbench.plausibility import gate
-from workbench.procedure import ProcedureResult, run_analysis
+from workbench.procedure import ProcedureResult
 from workbench.registry import campaign_procedures
 from workbench.rigconfig import RigConfig, load_rig_config
 from workbench.runner import Progress, record, reopen, rig_state_for_resume, start
@@ -207,19 +207,123 @@ def noise_options(proc: ModuleType, sets: list[CalibrationSet]) -> dict:
     return out
 
 
+def noise_options_known(proc: ModuleType, earlier: list[ProcedureResult | None]) -> bool:
+    """Whether :func:`noise_options` of ``proc`` is decided by the ``earlier`` results known so far.
+
+    ``earlier``: the results of the procedures before ``proc`` in campaign order, None for one
+    not analysed yet. Decided when every noise option ``proc`` declares is found in the sets
+    before the first unknown result (the first set with a term gives it), or when all are known.
+    """
+    wanted = {k for k in NOISE_OPTIONS if k in {o.name for o in declarations(proc)}}
+    sets: list[CalibrationSet] = []
+    for r in earlier:
+        if wanted <= set(noise_options(proc, sets)):
+            return True
+        if r is None:
+            return False
+        if r.calibration is not None:
+            sets.append(r.calibration)
+    return True
+
+
 @dataclass
 class CampaignResult:
-    """The merged calibration set of a campaign and the result of each procedure."""
+    """The merged calibration set of a campaign and the result of each procedure.
+
+    ``usage``: per procedure and phase (``record``, ``analyse``, ``figures``), the wall and CPU
+    seconds it took and the peak resident memory (bytes) of the process that ran it.
+    """
 
     calibration: CalibrationSet
     results: dict[str, ProcedureResult] = field(default_factory=dict)
     out_dir: Path | None = None
+    usage: dict[str, dict[str, dict]] = field(default_factory=dict)
+
+
+@dataclass
+class CampaignPlan:
+    """The campaign's procedures and what each runs with; the steps :mod:`workbench.campaign_schedule` runs.
+
+    Procedure ``k`` is recorded with seed ``seed + 101 (k + 1)`` into ``out_dir/<name>/session``,
+    analysed with its analysis options (the chamber's ambient as ``t_ref_c``, the noise terms of
+    the procedures before it, the options given) and its outputs written to ``out_dir/<name>``.
+    Each step depends only on its arguments, so the steps of different procedures may run in any
+    order or in different processes and give the same files.
+    """
+
+    procs: list[ModuleType]
+    spec: object
+    truth: object
+    cfg: RigConfig
+    seed: int
+    out_dir: Path
+    given: dict[str, tuple[dict, dict]]
+    figures: bool = True
+    force: bool = False
+
+    def name(self, k: int) -> str:
+        """The name of procedure ``k``."""
+        return self.procs[k].NAME
+
+    def _declared(self, k: int) -> set[str]:
+        return {o.name for o in declarations(self.procs[k])}
+
+    def sequence_options(self, k: int) -> dict:
+        """Sequence options of procedure ``k``: a hold at a set temperature runs at the ambient."""
+        ambient = self.cfg.chamber.initial_c
+        return {**({"temperature_c": ambient} if "temperature_c" in self._declared(k) else {}), **self.given[self.name(k)][0]}
+
+    def planned_s(self, k: int) -> float:
+        """Planned duration of procedure ``k``'s sequence, s (the longest is started first)."""
+        proc = self.procs[k]
+        seq = proc.sequence(self.spec, **validate(proc, self.sequence_options(k), "sequence"))
+        return float(sum(p.duration_s for p in seq.expand()))
+
+    def record(self, k: int, progress: Progress | None = None) -> Session:
+        """Record procedure ``k``'s sequence."""
+        return record_procedure(self.procs[k], self.spec, self.truth, self.cfg, self.seed + 101 * (k + 1),
+                                self.out_dir / self.name(k) / "session", self.sequence_options(k), progress)
+
+    def ready(self, k: int, earlier: list[ProcedureResult | None]) -> bool:
+        """Whether procedure ``k``'s analysis options are decided by the ``earlier`` results (None: not yet)."""
+        return noise_options_known(self.procs[k], earlier)
+
+    def analysis_options(self, k: int, earlier: list[ProcedureResult | None]) -> dict:
+        """Analysis options of procedure ``k``, from the results of the procedures before it."""
+        proc = self.procs[k]
+        # a model with a reference temperature refers to the ambient the other procedures ran at,
+        # so that its bias and scale factor at t_ref merge consistently with theirs
+        analysis = {"t_ref_c": self.cfg.chamber.initial_c} if "t_ref_c" in self._declared(k) else {}
+        analysis.update(noise_options(proc, [r.calibration for r in earlier if r is not None and r.calibration is not None]))
+        analysis.update(self.given[proc.NAME][1])
+        validate(proc, analysis, "analysis")  # the noise options pass the declared-option check too
+        return analysis
+
+    def analyse(self, k: int, session: Session, options: Mapping) -> ProcedureResult:
+        """Analyse procedure ``k``'s session; write ``result.json`` and ``calibration.json``."""
+        from workbench.procedure import analysed, write_outputs
+
+        result = analysed(self.procs[k], session, options, self.force)
+        write_outputs(result, self.out_dir / self.name(k))
+        return result
+
+    def draw(self, k: int, result: ProcedureResult) -> dict:
+        """Procedure ``k``'s figures ({name: Figure}, not saved yet; empty without figures)."""
+        proc = self.procs[k]
+        return dict(proc.figures(result)) if self.figures and hasattr(proc, "figures") else {}
+
+    def save(self, k: int, figures: Mapping, workers: int | None = None) -> None:
+        """Save (and close) ``figures`` of procedure ``k`` into ``out_dir/<name>/figures``."""
+        from workbench.plots.pool import save_figures
+
+        if figures:
+            save_figures(figures, self.out_dir / self.name(k) / "figures", workers=workers)
 
 
 def run_campaign(spec, truth, cfg: RigConfig, seed: int, out_dir: Path, store=None,
                  progress_for: Callable[[str], Progress | None] | None = None,
                  only: list[str] | None = None, options: Mapping[str, Mapping] | None = None,
-                 figures: bool = True, force: bool = False) -> CampaignResult:
+                 figures: bool = True, force: bool = False, workers: int | None = None) -> CampaignResult:
     """Run every calibration procedure that applies to the unit, in order, and merge their sets.
 
     Each procedure records into ``out_dir/<name>/session`` and writes its results and figures to
@@ -233,7 +337,11 @@ def run_campaign(spec, truth, cfg: RigConfig, seed: int, out_dir: Path, store=No
     win. ``campaign.json`` lists the analysis options so set. ``figures=False`` draws none.
     Every procedure's set and the merged set pass the plausibility gate
     (:mod:`workbench.plausibility`; ``force`` keeps a failed one with the check in its notes).
+    ``workers``: processes to run the procedures in (default: one per usable CPU,
+    :func:`workbench.workers.usable_workers`); the files are the same for any number.
     """
+    from workbench.campaign_schedule import run_plan
+
     procs = [p for p in campaign_procedures(set(spec.triads)) if applies(p, spec) and not needs_calibration(p)]
     if only:
         procs = [p for p in procs if p.NAME in only]
@@ -241,28 +349,9 @@ def run_campaign(spec, truth, cfg: RigConfig, seed: int, out_dir: Path, store=No
         raise ProcedureError(f"no campaign procedure applies to grade {spec.name}")
     given = {p.NAME: split(p, (options or {}).get(p.NAME)) for p in procs}  # refuse bad options up front
     out_dir = Path(out_dir)
-    results: dict[str, ProcedureResult] = {}
-    sessions: dict[str, Session] = {}
-    analyses: dict[str, dict] = {}  # the analysis options the campaign set, per procedure
-    ambient = cfg.chamber.initial_c
-    for k, proc in enumerate(procs):
-        pdir = out_dir / proc.NAME
-        progress = progress_for(proc.NAME) if progress_for else None
-        declared = {o.name for o in declarations(proc)}
-        seq_given, analysis_given = given[proc.NAME]
-        # a hold at a set temperature runs at the ambient the other procedures run at
-        seq_options = {**({"temperature_c": ambient} if "temperature_c" in declared else {}), **seq_given}
-        session = record_procedure(proc, spec, truth, cfg, seed + 101 * (k + 1), pdir / "session",
-                                   seq_options, progress)
-        sessions[proc.NAME] = session
-        # a model with a reference temperature refers to the ambient the other procedures ran at,
-        # so that its bias and scale factor at t_ref merge consistently with theirs
-        analysis = {"t_ref_c": ambient} if "t_ref_c" in declared else {}
-        analysis.update(noise_options(proc, [r.calibration for r in results.values() if r.calibration is not None]))
-        analysis.update(analysis_given)
-        validate(proc, analysis, "analysis")  # the noise options pass the declared-option check too
-        analyses[proc.NAME] = analysis
-        results[proc.NAME] = run_analysis(proc, session, analysis, pdir, None, figures, force)
+    plan = CampaignPlan(procs, spec, truth, cfg, seed, out_dir, given, figures, force)
+    done = run_plan(plan, progress_for, workers)
+    results = {plan.name(k): done.results[k] for k in range(len(procs))}
     sets = [r.calibration for r in results.values() if r.calibration is not None]
     if not sets:
         raise ProcedureError("the campaign produced no calibration set")
@@ -270,17 +359,16 @@ def run_campaign(spec, truth, cfg: RigConfig, seed: int, out_dir: Path, store=No
     merged.save(out_dir / "calibration.json")
     atomic_write_text(out_dir / "campaign.json", json.dumps({
         "unit": {"serial": truth.serial, "model": truth.model}, "grade": spec.name, "seed": seed,
-        "procedures": list(results), "analysis_options": analyses, "calibration_id": merged.id,
-        "warnings": {n: r.warnings for n, r in results.items()}}, indent=1) + "\n")
+        "procedures": list(results), "analysis_options": {plan.name(k): a for k, a in sorted(done.options.items())},
+        "calibration_id": merged.id, "warnings": {n: r.warnings for n, r in results.items()}}, indent=1) + "\n")
     if store is not None:
         from workbench.procedure import result_json
 
         def write() -> None:  # one transaction: every session record, result and the merged set, or nothing
-            for name, r in results.items():
-                s = sessions[name]
-                store.add_session(s.id, s.unit.serial, s.unit.model, name, str(s.path), s.samples_sha256() or "",
-                                  len(s.steps), True)
-                store.add_result(name, s.id, s.unit.serial, json.loads(result_json(r)), None)
+            for k, (name, r) in enumerate(results.items()):
+                s = done.sessions[k]
+                store.add_session(s.id, s.serial, s.model, name, s.path, s.sha256, s.n_steps, True)
+                store.add_result(name, s.id, s.serial, json.loads(result_json(r)), None)
             store.add_set(merged)
         store.write_together(write)
-    return CampaignResult(merged, results, out_dir)
+    return CampaignResult(merged, results, out_dir, {plan.name(k): u for k, u in done.usage.items()})

@@ -132,17 +132,9 @@ def write_outputs(result: ProcedureResult, out_dir: Path, figures: Mapping | Non
     if result.calibration is not None:
         written.append(result.calibration.save(out_dir / "calibration.json"))
     if figures:
-        import matplotlib.pyplot as plt
+        from workbench.plots.pool import save_figures
 
-        fig_dir = out_dir / "figures"
-        fig_dir.mkdir(exist_ok=True)
-        for name, fig in figures.items():
-            path = fig_dir / f"{name}.png"
-            tmp = fig_dir / f".{name}.tmp.png"
-            fig.savefig(tmp, dpi=110)  # laid out once when drawn (constrained layout), not re-fitted here
-            tmp.replace(path)
-            plt.close(fig)
-            written.append(path)
+        written += save_figures(figures, out_dir / "figures")
     return written
 
 

@@ -1,6 +1,7 @@
 """The campaign (workbench/jobs.py run_campaign): order, options handed on, merged set against truth."""
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -45,3 +46,40 @@ def test_campaign_runs_allan_first_and_hands_its_noise_on(tmp_path):
         true_bias = m.bias + m.thermal.bias_shift(np.array([cfg.chamber.initial_c]))[0]
         z = (merged.model(triad).bias - true_bias) / merged.triads[triad].sigma_of("bias")
         assert np.all(np.abs(z) < 4.0), (triad, z)
+
+
+def _outputs(root) -> dict:
+    """Every result, set and figure file under ``root`` (sessions left out), ids and times removed."""
+    ignored = {"id", "created", "calibration_id", "session_id", "sha256", "path"}
+    uuid = re.compile(r"^[0-9a-f]{8}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{12}$")
+
+    def clean(x):
+        if isinstance(x, dict):
+            return {k: clean(v) for k, v in x.items() if k not in ignored}
+        if isinstance(x, str) and uuid.match(x):
+            return "<id>"
+        return [clean(v) for v in x] if isinstance(x, list) else x
+    out = {}
+    for f in sorted(root.rglob("*")):
+        if f.is_file() and "session" not in f.relative_to(root).parts:
+            out[str(f.relative_to(root))] = clean(json.loads(f.read_text())) if f.suffix == ".json" else f.read_bytes()
+    return out
+
+
+def test_campaign_in_two_processes_writes_what_it_writes_in_one(tmp_path):
+    # the same seed gives the same numbers (and figure bytes) whichever process ran which step;
+    # multiposition waits for the Allan B, the magnetometer does not
+    spec = load_spec("industrial_mems")
+    truth = draw_unit(spec, 6)
+    options = {"allan": {"duration_s": 900.0, "soak": False}, "multiposition": {"dwell_s": 5.0}}
+    runs = {}
+    for workers in (1, 2):
+        res = jobs.run_campaign(spec, truth, load_rig_config("sim"), 6, tmp_path / str(workers),
+                                only=["allan", "multiposition", "magnetometer"], options=options, workers=workers)
+        assert list(res.results) == ["allan", "multiposition", "magnetometer"]
+        assert set(res.usage["multiposition"]) == {"record", "analyse", "figures"}
+        runs[workers] = _outputs(tmp_path / str(workers))
+    assert any(name.endswith(".png") for name in runs[1])
+    assert runs[2].keys() == runs[1].keys()
+    for name in runs[1]:
+        assert runs[2][name] == runs[1][name], name
