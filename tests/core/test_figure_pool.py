@@ -27,6 +27,7 @@ def _figures(n: int) -> dict:
 
 def test_two_processes_write_the_same_pngs_as_one(tmp_path):
     n = MANY + 1
+    plt.close("all")  # figures other tests left open
     one = save_figures(_figures(n), tmp_path / "one", workers=1)
     two = save_figures(_figures(n), tmp_path / "two", workers=2)
     assert [p.name for p in one] == [p.name for p in two] == [f"fig{i}.png" for i in range(n)]
@@ -37,6 +38,7 @@ def test_two_processes_write_the_same_pngs_as_one(tmp_path):
 
 
 def test_a_figure_that_fails_in_the_second_process_is_raised_here(tmp_path):
+    plt.close("all")
     figs = _figures(MANY)
 
     def fail(*args, **kwargs):
