@@ -90,3 +90,19 @@ def test_free_points_need_a_free_step():
     session, _ = simulate(Sequence("h", [Hold("z-down", 0.0, 2.0)]), "consumer_9axis", 1)
     with pytest.raises(AnalysisError, match="no free step"):
         free_points(session)
+
+
+def test_split_half_scale_widens_only_what_disagrees():
+    from workbench.analysis.mag_fit import MagFit
+    from workbench.analysis.mag_free import scaled_sigmas, split_half_scale
+
+    def fit(bias):
+        return MagFit("ellipsoid", np.asarray(bias, float), np.full(3, 0.1), np.eye(3), np.full((3, 3), 1e-3),
+                      50.0, 0.05, 0.1, 100, "det")
+
+    # hard iron differs by (0.3, 0, 0) µT with sigma 0.1 each: z = 0.3 / sqrt(0.02) = 2.12 on one of 3 axes
+    scales = split_half_scale(fit([0.3, 0, 0]), fit([0, 0, 0]))
+    assert scales["hard iron"][1] == pytest.approx(np.sqrt(2.12132**2 / 3), rel=1e-4)
+    assert scales["soft iron"] == (1.0, 0.0) and scales["field norm"] == (1.0, 0.0)
+    wide = scaled_sigmas(fit([0, 0, 0]), {g: k for g, (k, _) in scales.items()})
+    assert np.allclose(wide.bias_sigma, 0.1 * scales["hard iron"][0]) and np.allclose(wide.soft_iron_sigma, 1e-3)

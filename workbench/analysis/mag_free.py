@@ -15,7 +15,13 @@ field-to-gravity angle, on all points and held out (fitted on the first half in 
 on the second), for the fit and for a plain 10-coefficient algebraic ellipsoid on the same points.
 
 Public: :data:`QUASI_STATIC_TOL`, :class:`FreeData`, :func:`free_points`, :class:`FitFigures`,
-:class:`FreeQuality`, :func:`figures_of`, :func:`holdout_quality`, :func:`calibrate_free`.
+:class:`FreeQuality`, :func:`figures_of`, :func:`holdout_quality`, :func:`calibrate_free`,
+:func:`split_half_scale`, :func:`scaled_sigmas`.
+
+Sigmas: besides the residuals' autocorrelation (:mod:`workbench.analysis.mag_fit`), the fits of the two
+halves in time must agree within their sigmas; when they do not (model misfit: a hand-held record's
+residuals depend on where the hand took the unit), every sigma is scaled by their rms z
+(:func:`split_half_scale`), and a warning says so.
 """
 
 from __future__ import annotations
@@ -290,9 +296,16 @@ def calibrate_free(session: Session, method: str = "auto", robust: bool | str = 
     accel = data.accel if accel_model is None else accel_model.compensate(data.accel)
     down = down_direction(accel)
 
+    cache: dict = {}
+
     def fitter(name: str) -> Fitter:
-        return lambda sel: fit_method(name, MagPoints(data.mag[sel], accel[sel], gravity_ok=q[sel]), down[sel],
-                                      field_norm_ut, robust)
+        def fit(sel: np.ndarray) -> MagFit:  # each half is fitted once (choice, quality, sigma check)
+            key = (name, sel.tobytes())
+            if key not in cache:
+                cache[key] = fit_method(name, MagPoints(data.mag[sel], accel[sel], gravity_ok=q[sel]), down[sel],
+                                        field_norm_ut, robust)
+            return cache[key]
+        return fit
 
     choice = None
     if method == "auto" and mag_quality.thickness(data.mag) >= mag_quality.FLAT_LIMIT_UT:
@@ -300,4 +313,51 @@ def calibrate_free(session: Session, method: str = "auto", robust: bool | str = 
     cal = calibrate(points, method=method, robust=robust, field_norm_ut=field_norm_ut, accel_model=accel_model,
                     reference=reference, source=session.name, data=data.describe(), choice=choice)
     quality = holdout_quality(fitter(cal.fit.method), cal.fit, data.mag, accel, data.t, q)
-    return replace(cal, free_quality=quality)
+    _, first, second = _halves(data.t)
+    try:
+        scales = split_half_scale(fitter(cal.fit.method)(first), fitter(cal.fit.method)(second))
+    except AnalysisError:
+        scales = {}
+    warnings = cal.warnings
+    fit = cal.fit
+    if any(k > 1.0 for k, _ in scales.values()):
+        fit = scaled_sigmas(fit, {g: k for g, (k, _) in scales.items()})
+        shown = ", ".join(f"{g} x{k:.2f} (rms z {z:.2f})" for g, (k, z) in scales.items() if k > 1.0)
+        warnings = (*warnings, f"sigmas scaled where the fits of the two halves in time differ by more than their "
+                               f"sigmas (model misfit or correlated residuals): {shown}")
+    return replace(cal, fit=fit, warnings=warnings, free_quality=quality)
+
+
+GROUPS = ("hard iron", "soft iron", "field norm")
+
+
+def _coefficients(fit: MagFit) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Per group of :data:`GROUPS`: the fit's coefficients (µT or dimensionless) and their sigmas."""
+    return {"hard iron": (fit.bias, fit.bias_sigma), "soft iron": (fit.soft_iron.ravel(), fit.soft_iron_sigma.ravel()),
+            "field norm": (np.array([fit.field_norm_ut]), np.array([fit.field_norm_sigma]))}
+
+
+def split_half_scale(a: MagFit, b: MagFit) -> dict[str, tuple[float, float]]:
+    """Per group of :data:`GROUPS`: (scale, rms z) from the fits of the two halves of a record, with
+    ``z = (c_a - c_b) / sqrt(s_a^2 + s_b^2)`` over the coefficients both observe and ``scale = max(1, rms z)``:
+    what the full fit's sigmas of that group need for the halves to agree (a correct model and white
+    residuals give rms z ~ 1 and leave them alone)."""
+    out = {}
+    for g, ((ca, sa), (cb, sb)) in zip(GROUPS, zip(_coefficients(a).values(), _coefficients(b).values())):
+        ok = np.isfinite(sa) & np.isfinite(sb) & (np.hypot(sa, sb) > 0)
+        if ok.any():
+            rms = float(np.sqrt(np.mean(((ca - cb)[ok] / np.hypot(sa, sb)[ok]) ** 2)))
+            out[g] = (max(1.0, rms), rms)
+    return out
+
+
+def scaled_sigmas(fit: MagFit, k: dict[str, float]) -> MagFit:
+    """``fit`` with the sigmas of each group of :data:`GROUPS` multiplied by ``k[group]`` (1 if absent); dip,
+    declination and alignment take the soft iron's."""
+    ks = k.get("soft iron", 1.0)
+
+    def mul(x):
+        return None if x is None else x * ks
+    return replace(fit, bias_sigma=fit.bias_sigma * k.get("hard iron", 1.0), soft_iron_sigma=fit.soft_iron_sigma * ks,
+                   field_norm_sigma=fit.field_norm_sigma * k.get("field norm", 1.0), dip_sigma=mul(fit.dip_sigma),
+                   declination_sigma=mul(fit.declination_sigma), alignment_sigma=mul(fit.alignment_sigma))
