@@ -171,24 +171,26 @@ def _check_magnitude(y: np.ndarray, columns, source: str, quantity: str) -> None
 def phase(y: np.ndarray, rate: float, compiled: bool | None = None) -> np.ndarray:
     """Phase (C, N+1) from rate samples (N, C): x_0 = 0, x_k = dt cumsum(y - mean) (allantools).
 
-    ``compiled``: integrate with the numba kernel in one pass (default: for records above
-    :data:`COMPILED_WORK` / 20 samples; numpy otherwise, one (N,) temporary per channel).
+    ``compiled``: integrate with the numba kernel in one pass (default: for C-ordered records above
+    :data:`COMPILED_WORK` / 20 samples; numpy otherwise, channel by channel in place, no
+    temporaries: a channel-major (F-ordered) ``y``, as the CLI reads a file, is the fast case).
     """
     y = np.asarray(y, float)
     if y.ndim == 1:
         y = y[:, None]
     x = np.empty((y.shape[1], y.shape[0] + 1))
     x[:, 0] = 0.0
-    if compiled if compiled is not None else y.size > COMPILED_WORK / 20:
+    if compiled if compiled is not None else (y.size > COMPILED_WORK / 20 and y.flags.c_contiguous):
         from workbench.analysis import allan_kernels as kern
 
         kern.integrate(y, kern.column_sums(y) / len(y), 1.0 / float(rate), np.zeros(y.shape[1]), x[:, 1:])
         return x
     dt = 1.0 / float(rate)
     for c in range(y.shape[1]):
-        col = y[:, c] - np.mean(y[:, c])
-        np.cumsum(col, out=x[c, 1:])
-        x[c, 1:] *= dt
+        xc = x[c, 1:]
+        np.subtract(y[:, c], np.mean(y[:, c]), out=xc)
+        np.cumsum(xc, out=xc)
+        xc *= dt
     return x
 
 

@@ -182,8 +182,10 @@ def _profile(a: np.ndarray, avar: np.ndarray, edf: np.ndarray, k: int, t: float,
     model = np.maximum(a @ theta, 1e-300)
     for _ in range(_IRLS_ITER):
         rest = avar - t * a[:, k]
-        sw = np.sqrt(edf) / np.maximum(model, 1e-300)
-        coef, _ = nnls(a[:, cols] * sw[:, None], rest * sw)
+        with np.errstate(over="ignore", invalid="ignore"):  # far profile points overflow the weights
+            sw = np.sqrt(edf) / np.maximum(model, 1e-300)
+            lhs, rhs = a[:, cols] * sw[:, None], rest * sw
+        coef, _ = nnls(lhs, rhs)
         new = np.zeros(5)
         new[cols] = coef
         new[k] = t

@@ -28,6 +28,8 @@ def nnls(a: np.ndarray, b: np.ndarray, max_iter: int | None = None) -> tuple[np.
     """
     a = np.asarray(a, float)
     b = np.asarray(b, float)
+    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):  # an overflowed weighting: no solution
+        return np.full(a.shape[1], np.nan), float("nan")
     # columns scaled to unit peak (x >= 0 is invariant under positive column scales): the noise
     # bases span 20 decades, which would otherwise swamp the gradient test
     scale = np.abs(a).max(axis=0, initial=0.0)
@@ -39,8 +41,6 @@ def nnls(a: np.ndarray, b: np.ndarray, max_iter: int | None = None) -> tuple[np.
     b_scale = float(np.abs(b).max(initial=0.0))
     if b_scale == 0.0:
         return x, 0.0
-    if not np.isfinite(b_scale) or not np.all(np.isfinite(an)):
-        return np.full(n, np.nan), float("nan")
     b = b / b_scale  # the problem is homogeneous in b: solved at unit scale, no overflow
     tol = 10.0 * np.finfo(float).eps * max(a.shape) ** 2
     w = an.T @ b
@@ -82,7 +82,8 @@ def root_bracket(f: Callable[[float], float], lo: float, hi: float, xtol: float 
     side = 0
     x = lo
     for _ in range(max_iter):
-        x = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):  # an infinite end: bisect
+            x = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
         if not lo < x < hi:
             x = 0.5 * (lo + hi)
         fx = f(x)

@@ -142,16 +142,16 @@ def _parquet_columns(path: Path, columns: list[str] | None,
     if not all(numeric(c) for c in cols):
         return None
     n = pf.metadata.num_rows
-    y = np.empty((n, len(cols)))
+    y = np.empty((len(cols), n))  # channel-major: each column copied contiguously; returned as the (N, C) view
     t = np.empty(n) if want_time and time_col is not None else None
     try:
         for j, c in enumerate(cols):
-            _fill(pf.read(columns=[c], use_threads=False).column(0), y[:, j])
+            _fill(pf.read(columns=[c], use_threads=False).column(0), y[j])
         if t is not None:
             _fill(pf.read(columns=[time_col], use_threads=False).column(0), t)
     except Exception as exc:
         raise AnalysisError(f"{path}: cannot read samples ({type(exc).__name__}: {str(exc)[:120]})") from None
-    return y, t, cols
+    return y.T, t, cols
 
 
 def _fill(column, out: np.ndarray) -> None:
