@@ -42,6 +42,7 @@ from workbench import units
 from workbench.angles import wrap_pi
 from workbench.calset import CalibrationSet
 from workbench.errors import AnalysisError
+from workbench.json_values import json_value
 from workbench.nav import zupt
 from workbench.nav.compensate import check_calibration, compensate, imu_samples, process_noise
 from workbench.nav.strapdown import attitude_errors, euler_rph
@@ -168,7 +169,7 @@ def _groups(session: Session) -> list[list]:
 
 def _num(x: float) -> float | None:
     """A JSON number, or None where the value is undefined (Euler roll/heading at pitch ±90°)."""
-    return float(x) if np.isfinite(x) else None
+    return json_value(float(x))
 
 
 def _block(positions: list[dict]) -> dict:

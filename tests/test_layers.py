@@ -17,8 +17,8 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 
 # the bottom layer: value types, file helpers and small shared facts import (almost) nothing
-VALUE_MODULES = ("workbench.values", "workbench.files", "workbench.angles", "workbench.motion", "workbench.units",
-                 "workbench.earth", "workbench.errors", "workbench.result", "workbench.allan_model")
+VALUE_MODULES = ("workbench.values", "workbench.files", "workbench.json_values", "workbench.angles", "workbench.motion",
+                 "workbench.units", "workbench.earth", "workbench.errors", "workbench.result", "workbench.allan_model")
 VALUE_MAY_IMPORT = ("workbench.errors",)
 
 ABOVE_ANALYSES = ("workbench.procedure", "workbench.registry", "workbench.jobs", "workbench.cli", "workbench.runner",

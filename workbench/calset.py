@@ -29,6 +29,7 @@ import numpy as np
 from workbench import __version__
 from workbench.errors import CalibrationFormatError
 from workbench.files import atomic_write_text, file_sha256  # noqa: F401  (re-exported: older imports)
+from workbench.json_values import json_default, json_value
 from workbench.model import COEFFICIENT_FIELDS, ThermalModel, TriadModel
 from workbench.values import Unit
 
@@ -149,7 +150,7 @@ class CalibrationSet:
         if self.noise:
             out["noise"] = copy.deepcopy({k: dict(v) for k, v in self.noise.items()})
         if self.notes:
-            out["notes"] = json.loads(json.dumps(self.notes, default=_json_default))
+            out["notes"] = json.loads(json.dumps(self.notes, default=json_default))
         validate(out, source=f"set {self.id}")
         return out
 
@@ -240,19 +241,6 @@ class CalibrationSet:
         return replace(self, provenance=prov, id=str(uuid.uuid4()), created=_now())
 
 
-def _json_default(obj):
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, np.generic):
-        return obj.item()
-    raise TypeError(f"not JSON-serialisable: {type(obj).__name__}")
-
-
-def _nan_to_none(arr: np.ndarray):
-    return [(_nan_to_none(a) if isinstance(a, np.ndarray) else (None if not np.isfinite(a) else float(a)))
-            for a in arr]
-
-
 def _none_to_nan(values) -> np.ndarray:
     return np.array(json.loads(json.dumps(values).replace("null", "NaN")), float)
 
@@ -267,12 +255,12 @@ def _triad_to_dict(name: str, tc: TriadCalibration) -> dict:
         if name == "mag" and f in ("nonlinearity", "g_sensitivity"):
             continue
         out[f] = value.tolist()
-        out[f + "_sigma"] = _nan_to_none(tc.sigma_of(f))
+        out[f + "_sigma"] = json_value(tc.sigma_of(f))
     if m.thermal is not None:
         th = {"t_ref_c": m.thermal.t_ref_c, "bias_poly": m.thermal.bias_poly.tolist(),
               "scale_poly": m.thermal.scale_poly.tolist(),
-              "bias_poly_sigma": _nan_to_none(tc.sigma_of("thermal.bias_poly")),
-              "scale_poly_sigma": _nan_to_none(tc.sigma_of("thermal.scale_poly"))}
+              "bias_poly_sigma": json_value(tc.sigma_of("thermal.bias_poly")),
+              "scale_poly_sigma": json_value(tc.sigma_of("thermal.scale_poly"))}
         if tc.thermal_range_c is not None:
             th["t_min_c"], th["t_max_c"] = map(float, tc.thermal_range_c)
         out["thermal"] = th

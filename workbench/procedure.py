@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from workbench.calset import CalibrationSet, atomic_write_text
+from workbench.json_values import json_default
 from workbench.result import SummaryLines
 from workbench.session import Session
 
@@ -97,16 +98,6 @@ def with_session_provenance(result: ProcedureResult, session: Session) -> Proced
     return replace(result, calibration=cal)
 
 
-def _json_default(obj):
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, Path):
-        return str(obj)
-    raise TypeError(f"not JSON-serialisable: {type(obj).__name__}")
-
-
 def result_json(result: ProcedureResult) -> str:
     """``result.json`` text: procedure, result dict, summary lines, warnings, the analysis options used,
     the software version and the calibration id, so that anything downstream (dashboard, certificate)
@@ -122,7 +113,7 @@ def result_json(result: ProcedureResult) -> str:
         "software": {"workbench": __version__},
         "calibration_id": result.calibration.id if result.calibration is not None else None,
     }
-    return json.dumps(doc, indent=2, default=_json_default) + "\n"
+    return json.dumps(doc, indent=2, default=json_default) + "\n"
 
 
 def write_outputs(result: ProcedureResult, out_dir: Path, figures: Mapping | None = None) -> list[Path]:

@@ -14,17 +14,10 @@ import numpy as np
 from workbench.analysis.northfinding_fit import RedundantResult, repeatability
 from workbench.angles import wrap_2pi
 from workbench.errors import AnalysisError
+from workbench.json_values import json_value as _json_num
 
 if TYPE_CHECKING:
     from workbench.analysis.northfinding import NorthFinding
-
-
-def _json_num(x) -> float | None | list:
-    """JSON value of a float or array: NaN (not observed) becomes null."""
-    arr = np.asarray(x, float)
-    if arr.ndim:
-        return [_json_num(v) for v in arr]
-    return float(arr) if np.isfinite(arr) else None
 
 
 def to_result(nf: NorthFinding) -> tuple[dict, list[str]]:

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from workbench.errors import AnalysisError
+from workbench.json_values import json_value as _nan_none
 
 
 MAX_ORDER = 5
@@ -91,13 +92,6 @@ class PolyFit:
             "n_points": int(len(self.temperature_c)),
             "n_temperatures": int(len(np.unique(np.round(self.temperature_c, 1)))),
         }
-
-
-def _nan_none(a):
-    a = np.asarray(a, float)
-    if a.ndim == 0:
-        return None if not np.isfinite(a) else float(a)
-    return [_nan_none(x) for x in a]
 
 
 def _design(dt: np.ndarray, order: int, s: np.ndarray | None) -> np.ndarray:

@@ -21,6 +21,7 @@ from workbench.analysis.position_check import (
 )
 from workbench.calset import CalibrationSet, TriadCalibration
 from workbench.errors import AnalysisError
+from workbench.json_values import json_value
 from workbench.model import TriadModel
 from workbench.session import Session
 
@@ -96,16 +97,10 @@ class TriadFit:
 
     def to_dict(self) -> dict:
         """JSON-ready summary (SI, NaN -> None), without the residual table."""
-        def arr(a):
-            if a is None:
-                return None
-            a = np.asarray(a, float)
-            return [arr(row) for row in a] if a.ndim == 2 else [float(v) if np.isfinite(v) else None for v in a]
-
         out = {"triad": self.triad}
         for name in ("bias", "scale_misalignment", "nonlinearity", "g_sensitivity", "asymmetry"):
-            out[name] = arr(getattr(self, name))
-            out[name + "_sigma"] = arr(getattr(self, name + "_sigma"))
+            out[name] = json_value(getattr(self, name))
+            out[name + "_sigma"] = json_value(getattr(self, name + "_sigma"))
         out.update({"outliers": list(self.outliers), "warnings": list(self.warnings),
                     "chi2_reduced": None if not np.isfinite(self.chi2_reduced) else float(self.chi2_reduced),
                     "dof": int(self.dof), "notes": dict(self.notes)})

@@ -19,6 +19,7 @@ from scipy.spatial.transform import Rotation
 from workbench.angles import wrap_pi
 from workbench.earth import earth_rate_ned
 from workbench.errors import AnalysisError
+from workbench.json_values import json_value
 from workbench.nav.compensate import ImuSamples
 from workbench.nav.strapdown import BlockPropagator, coarse_level, euler_rph, from_rph, with_previous
 
@@ -97,12 +98,9 @@ class AhrsResult:
     def to_dict(self) -> dict:
         """The end state, JSON-ready (SI; NaN -> None): time, roll/pitch/heading and their sigmas (rad),
         gyro bias and sigma (rad/s), the field reference (µT, rad) and the disturbed intervals (s)."""
-        def num(a):
-            return [float(v) if np.isfinite(v) else None for v in np.ravel(a)]
-
-        return {"filter": self.filter, "t_end": float(self.t[-1]), "rph": num(self.rph[-1]),
-                "attitude_sigma": num(self.attitude_sigma[-1]), "gyro_bias": num(self.gyro_bias[-1]),
-                "gyro_bias_sigma": num(self.gyro_bias_sigma[-1]), "mag_reference": num(self.mag_reference),
+        return {"filter": self.filter, "t_end": float(self.t[-1]), "rph": json_value(self.rph[-1]),
+                "attitude_sigma": json_value(self.attitude_sigma[-1]), "gyro_bias": json_value(self.gyro_bias[-1]),
+                "gyro_bias_sigma": json_value(self.gyro_bias_sigma[-1]), "mag_reference": json_value(self.mag_reference),
                 "mag_disturbances": [list(iv) for iv in self.disturbed_intervals()], "warnings": list(self.warnings)}
 
     def summary(self) -> list[str]:
