@@ -31,3 +31,22 @@ def test_gmwm_bad_model_is_one_line_exit_2(tmp_path, capsys):
     assert main(["allan", str(tmp_path / "r.parquet"), "--rate", "100", "--method", "bayes"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert "GMWM model 'wn+xx'" in err[0] and "--method 'bayes'" in err[-1]
+
+
+def test_large_parquet_is_streamed_automatically(tmp_path, monkeypatch):
+    # above STREAM_SAMPLES values the command streams (bounded memory); the curves equal the
+    # in-memory ones to summation order (~1e-13 relative)
+    import workbench.cli.allan as cli_allan
+
+    y = 1e-3 * np.random.default_rng(5).standard_normal((20_000, 3))
+    pd.DataFrame(y, columns=["gx", "gy", "gz"]).to_parquet(tmp_path / "r.parquet")
+    args = ["allan", str(tmp_path / "r.parquet"), "--rate", "100"]
+    assert main([*args, "--out", str(tmp_path / "mem.csv")]) == 0
+    called = []
+    real = cli_allan._streamed
+    monkeypatch.setattr(cli_allan, "_streamed", lambda *a: called.append(1) or real(*a))
+    monkeypatch.setattr(cli_allan, "STREAM_SAMPLES", 10_000)
+    assert main([*args, "--out", str(tmp_path / "stream.csv")]) == 0
+    assert called
+    mem, st = pd.read_csv(tmp_path / "mem.csv"), pd.read_csv(tmp_path / "stream.csv")
+    np.testing.assert_allclose(st["adev"], mem["adev"], rtol=1e-10)
