@@ -84,7 +84,7 @@ class SimRig:
 
         Returns the samples (transition and step, in time order) and the step's record.
         """
-        parts = [self._transition(planned)]
+        parts = [self._transition(planned)]  # columns of each part, joined into one frame at the end
         st = self.state
         t_start = st.sample / self.fs
         if planned.temperature_c is not None and planned.kind in ("soak", "ramp"):
@@ -100,8 +100,8 @@ class SimRig:
         else:
             n = max(1, int(round(planned.duration_s * self.fs)))
             rate = planned.table_rate if planned.kind in ("rate", "carousel") else 0.0
-            parts.append(self._segment(n, index, planned.mount, rate_profile=np.full(n, rate), error=error))
-        samples = pd.concat(parts, ignore_index=True)
+            parts.append(self._columns(n, index, planned.mount, rate_profile=np.full(n, rate), error=error))
+        samples = _frame(parts)
         st.imu, st.rng = self.imu.state(), self.rng.bit_generator.state
         t_end = st.sample / self.fs
         record = StepRecord(index, planned.kind, t_start, t_end - 0.5 / self.fs, np.asarray(planned.mount),
@@ -127,7 +127,7 @@ class SimRig:
         sigma = self.config.turntable.positioning_error
         return Rotation.from_rotvec(self.rng.normal(0.0, sigma, 3))
 
-    def _transition(self, planned: PlannedStep) -> pd.DataFrame:
+    def _transition(self, planned: PlannedStep) -> dict[str, np.ndarray]:
         """Decelerate, remount, move to the step's angle, accelerate to its rate, settle (step -1)."""
         st, tt = self.state, self.config.turntable
         profiles = []
@@ -147,26 +147,26 @@ class SimRig:
         if not np.allclose(mount_now, planned.mount):
             mount_now = np.asarray(planned.mount)  # remounted by hand: instantaneous in simulation
         if len(rate) == 0:
-            return pd.DataFrame()
-        return self._segment(len(rate), -1, mount_now, rate_profile=rate, error=Rotation.identity())
+            return {}
+        return self._columns(len(rate), -1, mount_now, rate_profile=rate, error=Rotation.identity())
 
-    def _index_move(self, planned: PlannedStep, index: int, error: Rotation) -> pd.DataFrame:
+    def _index_move(self, planned: PlannedStep, index: int, error: Rotation) -> dict[str, np.ndarray]:
         angle = planned.extra["index_angle"]
         rate = _move(angle, abs(planned.table_rate), self.config.turntable.max_accel, self.fs)
-        return self._segment(len(rate), index, planned.mount, rate_profile=rate, error=error)
+        return self._columns(len(rate), index, planned.mount, rate_profile=rate, error=error)
 
-    def _soak(self, planned: PlannedStep, index: int, error: Rotation) -> pd.DataFrame:
+    def _soak(self, planned: PlannedStep, index: int, error: Rotation) -> dict[str, np.ndarray]:
         tol = planned.extra.get("settle_tol_c_per_min", 0.05)
         window = planned.extra.get("settle_window_s", 120.0)
         chunks, elapsed = [], 0.0
         n = int(round(_SOAK_CHUNK_S * self.fs))
         history_t, history_c = [], []
         while True:
-            chunk = self._segment(n, index, planned.mount, rate_profile=np.zeros(n), error=error)
+            chunk = self._columns(n, index, planned.mount, rate_profile=np.zeros(n), error=error)
             chunks.append(chunk)
             elapsed += _SOAK_CHUNK_S
-            history_t.append(chunk["t"].to_numpy()[-1])
-            history_c.append(float(chunk["temp"].to_numpy()[-int(self.fs):].mean()))
+            history_t.append(chunk["t"][-1])
+            history_c.append(float(chunk["temp"][-int(self.fs):].mean()))
             if elapsed >= window and abs(self.state.air_c - planned.temperature_c) < 1e-9:
                 k = int(np.ceil(window / _SOAK_CHUNK_S))
                 if len(history_c) > k:
@@ -177,10 +177,14 @@ class SimRig:
                 raise RigError(f"rig {self.name}: step {index} (soak to {planned.temperature_c:.1f} °C): "
                                f"unit temperature did not settle within {planned.duration_s:.0f} s "
                                f"(still {self.state.unit_c:.2f} °C)")
-        return pd.concat(chunks, ignore_index=True)
+        return {c: np.concatenate([chunk[c] for chunk in chunks]) for c in chunks[0]}
 
     def _segment(self, n: int, step: int, mount, rate_profile: np.ndarray, error: Rotation) -> pd.DataFrame:
-        """Simulate ``n`` samples with the given table-rate profile (rad/s per sample)."""
+        """Simulate ``n`` samples with the given table-rate profile (rad/s per sample), as a frame."""
+        return pd.DataFrame(self._columns(n, step, mount, rate_profile, error))
+
+    def _columns(self, n: int, step: int, mount, rate_profile: np.ndarray, error: Rotation) -> dict[str, np.ndarray]:
+        """Simulate ``n`` samples with the given table-rate profile (rad/s per sample): {column: (n,) array}."""
         st, fs = self.state, self.fs
         k = st.sample + np.arange(n)
         t = k / fs
@@ -226,7 +230,7 @@ class SimRig:
         st.table_angle = wrap_2pi(float(angle[-1]))
         st.table_rate = float(rate_profile[-1])
         st.mount = np.asarray(mount).tolist()
-        return pd.DataFrame(data)
+        return data
 
     def _imperfect_table(self, angle: np.ndarray, rate: np.ndarray, m_true: np.ndarray, repeat: int | None):
         """Body-frame angular rate, specific force and field on a table with indexing error, wobble, axis tilt.
@@ -269,6 +273,14 @@ class SimRig:
         unit, _ = lfilter([1 - alpha], [1, -alpha], air, zi=[alpha * st.unit_c])
         st.air_c, st.unit_c = float(air[-1]), float(unit[-1])
         return air, unit
+
+
+def _frame(parts: list[dict[str, np.ndarray]]) -> pd.DataFrame:
+    """One frame of the samples of ``parts`` ({column: array}, in time order; empty ones left out)."""
+    parts = [p for p in parts if p]
+    if len(parts) == 1:
+        return pd.DataFrame(parts[0])
+    return pd.DataFrame({c: np.concatenate([p[c] for p in parts]) for c in parts[0]})
 
 
 def _ramp_rate(r0: float, r1: float, accel: float, fs: float) -> np.ndarray:
