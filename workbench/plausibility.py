@@ -17,6 +17,8 @@ or against :data:`GENERIC` bounds when the grade is unknown (a recording of anot
 - magnetometer: field norm within 5 % of the session's reference, else in 20-70 µT (the
   geomagnetic field anywhere on Earth); dip within ±90° and within 5° of a reference dip when
   the result has one (``reference_field`` of the magnetometer analysis);
+- an imported session whose axis check failed (the gyro's rotation fits the accelerometer or
+  magnetometer only with another axis mapping: ``options['import']['axis_check']``);
 - static steps of the session: ``|ω|`` at most the Earth rate plus the grade's bias range (and,
   for a grade whose bias is below the Earth rate, at least the Earth rate minus it); ``|a|``
   within the grade's bias and scale-factor range of the site's gravity. A value that would
@@ -89,7 +91,7 @@ def check(cal: CalibrationSet, session=None, result: Mapping | None = None, spec
     spec = spec if spec is not None else grade_of(cal.unit.model)
     failures: list[Failure] = []
     if session is not None:
-        failures += _static_checks(session, spec)
+        failures += _axis_checks(session) + _static_checks(session, spec)
     for triad, tc in cal.triads.items():
         failures += _coefficient_checks(triad, tc, spec)
         failures += _matrix_checks(triad, tc)
@@ -286,6 +288,20 @@ def _noise_checks(cal: CalibrationSet) -> list[Failure]:
             if np.any(np.isinf(vals)) or np.any(vals[np.isfinite(vals)] < 0):
                 return [Failure(f"{triad}.{term}", f"{triad} noise {term}: negative or infinite value")]
     return []
+
+
+# -- the session ---------------------------------------------------------------------------------
+def _axis_checks(session) -> list[Failure]:
+    """The import's axis check (``options['import']['axis_check']``): a gyro whose rotation fits the
+    accelerometer or magnetometer only with another axis mapping means the profile's axes are wrong."""
+    imp = (session.options or {}).get("import") if isinstance(session.options, Mapping) else None
+    checks = imp.get("axis_check") if isinstance(imp, Mapping) else None
+    out = []
+    for c in checks if isinstance(checks, list) else []:
+        if isinstance(c, Mapping) and c.get("agrees") is False:
+            out.append(Failure("import.axes", f"import axis check against the {c.get('reference', '?')}: "
+                                              f"{c.get('message') or 'the axes disagree'}"))
+    return out[:1]
 
 
 # -- static steps of the session --------------------------------------------------------------

@@ -69,3 +69,15 @@ def test_misfit_and_combined_scale():
     # white residuals twice the assumed sigma: the misfit factor is 2, no correlation factor
     r = 2.0 * np.random.default_rng(4).standard_normal((4000, 3))
     assert abs(sigma_scale(r, 1.0, 10) / 2.0 - 1) < 0.05  # chi2 of 12000 dof: relative sd 0.6 %
+
+
+def test_honest_covariance_of_a_mean_is_tau_times_the_white_one():
+    # the mean as a least-squares fit: J = 1 per point, score = residual: the scale is tau_int of the residuals
+    from workbench.analysis.effective_n import honest_covariance
+
+    x = _ar1(0.8, 20000, 1, 5)
+    r = x - x.mean()
+    cov = np.array([[float(r.var()) / len(r)]])
+    tau = tau_int(r)
+    assert np.isclose(honest_covariance(cov, r)[0, 0], cov[0, 0] * tau)
+    assert np.isclose(honest_covariance(cov, r, np.ones((len(r), 1)))[0, 0], cov[0, 0] * tau)

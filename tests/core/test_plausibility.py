@@ -231,3 +231,16 @@ def test_real_recordings_pass(tmp_path, db, capsys):
         assert main(["import", str(profile), str(MARG / name), "--out", str(tmp_path / name)]) == 0
         assert main(["analyze", proc, str(tmp_path / name)]) == 0, capsys.readouterr().err
     assert [forced_failures(db.get_set(i.id)) for i in db.list_sets()] == [[], []]
+
+
+def test_an_import_whose_axis_check_failed_is_refused(tmp_path, db, spec):
+    # the import's axis check (workbench.importers) found the gyro's rotation fits the accelerometer only as -gy
+    session, _ = simulate(multiposition.sequence(spec, dwell_s=2.0), spec, seed=3)
+    session.options = {"import": {"axis_check": [{"reference": "accelerometer", "agrees": False,
+                                                  "message": "gyro fits with gy <- -gy"}]}}
+    with pytest.raises(ImplausibleCalibration, match="import axis check against the accelerometer: gyro fits "
+                                                     r"with gy <- -gy"):
+        run_analysis(multiposition, session, store=db)
+    assert db.list_sets() == []
+    res = run_analysis(multiposition, session, store=db, force=True)
+    assert "gy <- -gy" in forced_failures(db.get_set(res.calibration.id))[0]

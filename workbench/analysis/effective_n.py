@@ -12,7 +12,9 @@ factors correct it, each >= 1, and multiply the white-noise sigma:
   ``sqrt(4 M / N)``, of its white-noise spread).
 - :func:`misfit_scale` = ``sqrt(max(1, chi2 / dof))``: the reduced chi-square.
 
-:func:`sigma_scale` is both for a fit's residuals; :func:`mean_sigma` the honest sigma of the
+:func:`sigma_scale` is both for a fit's residuals; :func:`honest_covariance` scales a least-squares
+covariance per parameter by the correlation time of its score series (a Newey-West sandwich in
+effective-sample-size form); :func:`mean_sigma` the honest sigma of the
 mean of a static record; :func:`tau_int_records` one correlation time from several records (the
 static steps of a session); :func:`moving_block_bootstrap` the distribution of any statistic by
 resampling blocks of consecutive samples (Kunsch 1989), a check that needs no model of the
@@ -155,3 +157,30 @@ def moving_block_bootstrap(stat: Callable[[np.ndarray], np.ndarray], data: np.nd
         idx = (starts[:, None] + offsets[None, :]).ravel()[:n]
         out.append(np.asarray(stat(data[idx])))
     return np.array(out)
+
+
+def honest_covariance(cov: np.ndarray, residuals: np.ndarray, jac: np.ndarray | None = None) -> np.ndarray:
+    """A least-squares covariance (P, P) scaled to the correlation in time of what drives each parameter.
+
+    ``cov`` = ``s^2 inv(J^T J)`` (the misfit already in ``s^2``); ``residuals`` (N, k) in time
+    order, one row per point. Without ``jac``: ``cov`` times the largest :func:`tau_int` of the
+    residuals (right for a mean). With ``jac`` (rows ``i * k + c`` for point ``i``, component
+    ``c``; further rows, e.g. a prior, ignored): each parameter's score series ``g_i = sum_c
+    J[i k + c] r[i, c]`` (its share of the normal equations) gives its own ``tau_p``, and
+    ``cov_pq`` is scaled by ``sqrt(tau_p tau_q)``, each ``tau_p`` at least the residuals' own
+    (the larger is kept: each shows a correlation the other can miss) - the effective-sample-size form of a
+    heteroscedasticity-and-autocorrelation-consistent (Newey-West) sandwich: with a smooth
+    trajectory the regressors are correlated in time too, and a parameter's information comes
+    from fewer independent stretches than the residuals alone suggest. NaN entries stay NaN.
+    """
+    r = np.asarray(residuals, float)
+    r = r[:, None] if r.ndim == 1 else r
+    cov = np.asarray(cov, float)
+    if jac is None:
+        return cov * float(np.max(tau_int(r, pooled=False)))
+    n, k = r.shape
+    j = np.asarray(jac, float)[: n * k].reshape(n, k, -1)
+    scores = (j * r[:, :, None]).sum(axis=1)
+    tau = np.where(np.any(scores != 0, axis=0), tau_int(scores, pooled=False), 1.0)
+    d = np.sqrt(np.maximum(tau, float(np.max(tau_int(r, pooled=False)))))
+    return cov * d[:, None] * d[None, :]

@@ -10,8 +10,9 @@ fixed either by a reference field norm (the site's field, when the caller gives 
 convention, by ``det(I + M) = 1`` (volume-preserving soft iron, ``F`` the geometric-mean
 radius of the ellipsoid); :attr:`MagFit.scale_fixed_by` says which.
 
-Sigmas: ``s^2 inv(J^T J)`` times the residuals' integrated autocorrelation time
-(:mod:`workbench.analysis.effective_n`: 1 for white residuals, the points' time order).
+Sigmas: ``s^2 inv(J^T J)`` scaled per parameter by the integrated autocorrelation time of its
+score series, at least the residuals' own (:mod:`workbench.analysis.effective_n`: 1 for white
+residuals, the points' time order).
 
 Robustness (every estimator goes through :func:`solve`): ``robust=True`` fits with a Cauchy
 loss whose scale is the residuals' noise (MAD), rejects points beyond 5 robust sigma and refits
@@ -32,7 +33,7 @@ import numpy as np
 from scipy.linalg import polar
 from scipy.spatial.transform import Rotation
 
-from workbench.analysis.effective_n import tau_int
+from workbench.analysis.effective_n import honest_covariance
 from workbench.errors import AnalysisError
 from workbench.model import TriadModel
 
@@ -253,11 +254,13 @@ def solve(resid: Callable[[np.ndarray, np.ndarray], np.ndarray], p0: np.ndarray,
 
 
 def _covariance(jac: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """:func:`lsq_covariance` scaled by the residuals' integrated autocorrelation time (the largest of their k
-    columns; 1 for white residuals), so that correlated residuals (a hand-held record, a drifting field) do not
-    count as independent points. ``r`` (N, k) in the points' time order."""
-    scale = float(np.max(tau_int(r, pooled=False))) if len(r) > 3 else 1.0
-    return lsq_covariance(jac, r.ravel()) * scale
+    """:func:`lsq_covariance` scaled per parameter by the integrated autocorrelation time of its score series
+    ``J_i r_i`` (at least the residuals' own, the largest of their k columns; 1 for white residuals), so that
+    correlated residuals (a hand-held record, a drifting field) do not count as independent points and a smooth
+    trajectory's regressors are counted too (:func:`workbench.analysis.effective_n.honest_covariance`). ``r``
+    (N, k) in the points' time order."""
+    cov = lsq_covariance(jac, r.ravel())
+    return honest_covariance(cov, r, jac) if len(r) > 3 else cov
 
 
 def build_fit(method: str, sol: Solution, unpack: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
