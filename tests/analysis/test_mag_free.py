@@ -106,3 +106,10 @@ def test_split_half_scale_widens_only_what_disagrees():
     assert scales["soft iron"] == (1.0, 0.0) and scales["field norm"] == (1.0, 0.0)
     wide = scaled_sigmas(fit([0, 0, 0]), {g: k for g, (k, _) in scales.items()})
     assert np.allclose(wide.bias_sigma, 0.1 * scales["hard iron"][0]) and np.allclose(wide.soft_iron_sigma, 1e-3)
+
+
+def test_a_unit_left_still_is_refused_naming_the_cloud():
+    unit = draw_unit(SPEC, 6)
+    session, _ = handheld_session(unit, 6, duration_s=20.0, still_s=60.0)  # never turned
+    with pytest.raises(AnalysisError, match=r"not turned enough for a magnetometer fit \(raw cloud .* µT"):
+        calibrate_free(session)

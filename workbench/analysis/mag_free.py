@@ -277,6 +277,41 @@ def _choose(fitters: dict[str, Fitter], mag: np.ndarray, down: np.ndarray, gravi
     return Choice(best, f"field-to-gravity angle spread held out both ways (half to half): {shown}; {why}")
 
 
+MIN_CLOUD_UT = 10.0  # µT, principal standard deviation of the raw cloud along a direction the field must have turned
+MIN_DIP_TILT = float(np.radians(30.0))  # rad, spread of the gravity directions the dip fit needs
+
+
+def _candidates(name: str, data: FreeData, down: np.ndarray) -> list[str] | None:
+    """The estimators the data support (None: leave it to the planar choice, a level turn). The field must
+    have turned: the raw cloud's second principal standard deviation at least :data:`MIN_CLOUD_UT`; a 3D fit
+    needs it out of every plane too (the third), then the constant-dip fit when gravity takes many directions
+    and the ellipsoid when the field directions cover enough of the sphere. Else AnalysisError naming the data."""
+    centred = data.mag - data.mag.mean(axis=0)
+    sv = np.linalg.svd(centred, compute_uv=False) / np.sqrt(len(centred))
+    cover = mag_quality.sphere_coverage(centred)
+    spread = gravity_spread(down[data.fit_mask()])
+    figures = (f"raw cloud {sv[0]:.3g} x {sv[1]:.3g} x {sv[2]:.3g} µT (principal sigmas), field directions "
+               f"{cover:.0%} of the sphere, gravity directions within {np.degrees(spread):.0f}°")
+    if sv[1] < MIN_CLOUD_UT:
+        raise AnalysisError(f"{name}: {data.describe()}: the unit was not turned enough for a magnetometer fit "
+                            f"({figures}; need {MIN_CLOUD_UT:g} µT in two directions); turn it through a full circle "
+                            "(2D) or tumble it through many orientations (3D)")
+    if sv[2] < mag_quality.FLAT_LIMIT_UT:
+        return None  # a level turn: the planar (2D) choice
+    out = []
+    if sv[2] >= MIN_CLOUD_UT and spread > MIN_DIP_TILT:
+        out.append("dip")
+    if sv[2] >= MIN_CLOUD_UT and cover >= mag_quality.COVERAGE_FOR_ELLIPSOID:
+        out.append("ellipsoid")
+    if not out:
+        raise AnalysisError(f"{name}: {data.describe()}: {figures}: a turn about one axis, not level enough for a "
+                            f"2D fit (out of plane {sv[2]:.3g} µT >= {mag_quality.FLAT_LIMIT_UT:g}) and not "
+                            f"tumbled enough for a 3D one (needs {MIN_CLOUD_UT:g} µT out of every plane and gravity "
+                            f"over {np.degrees(MIN_DIP_TILT):.0f}° or {mag_quality.COVERAGE_FOR_ELLIPSOID:.0%} of the "
+                            "sphere); tumble the unit about several axes")
+    return out
+
+
 def calibrate_free(session: Session, method: str = "auto", robust: bool | str = False,
                    field_norm_ut: float | None = None, accel_model=None, reference=None) -> MagCalibration:
     """Calibrate the magnetometer from the session's ``free`` steps (see the module docstring).
@@ -308,8 +343,8 @@ def calibrate_free(session: Session, method: str = "auto", robust: bool | str = 
         return fit
 
     choice = None
-    if method == "auto" and mag_quality.thickness(data.mag) >= mag_quality.FLAT_LIMIT_UT:
-        choice = _choose({"dip": fitter("dip"), "ellipsoid": fitter("ellipsoid")}, data.mag, down, q, data.t)
+    if method == "auto" and (names := _candidates(session.name, data, down)) is not None:
+        choice = _choose({m: fitter(m) for m in names}, data.mag, down, q, data.t)
     cal = calibrate(points, method=method, robust=robust, field_norm_ut=field_norm_ut, accel_model=accel_model,
                     reference=reference, source=session.name, data=data.describe(), choice=choice)
     quality = holdout_quality(fitter(cal.fit.method), cal.fit, data.mag, accel, data.t, q)
