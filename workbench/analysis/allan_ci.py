@@ -17,7 +17,7 @@ evaluated on the rescaled problem (same r = M / S, J_MAX terms), which is the co
 behind the paper's large-J tables. The interval of the variance is then
 ``[edf s^2 / chi2(0.975, edf), edf s^2 / chi2(0.025, edf)]``.
 
-Public: :func:`chi2_ppf`, :func:`noise_id`, :func:`noise_id_decimated`, :func:`identify`, :func:`identify_decimated`,
+Public: :func:`chi2_ppf`, :func:`noise_id`, :func:`noise_id_decimated`, :func:`noise_id_spread`, :func:`identify`, :func:`identify_decimated`,
 :func:`alpha_from_slope`, :func:`edf_greenhall`, :func:`confidence`, :class:`DeviationCI`.
 """
 
@@ -76,6 +76,13 @@ def noise_id(x: np.ndarray, m: int, dmax: int) -> float:
 
 def noise_id_decimated(z: np.ndarray, dmax: int) -> float:
     """Power-law exponent alpha (not rounded) from an already decimated phase ``z`` (L_m,) (any unit)."""
+    return noise_id_spread(z, dmax)[0]
+
+
+def noise_id_spread(z: np.ndarray, dmax: int) -> tuple[float, float]:
+    """(alpha, its standard error) from a decimated phase ``z``: the lag-1 estimate as
+    :func:`noise_id_decimated`, and se = 2 se(r1) / (1 + r1)^2 with se(r1) = 1 / sqrt(L) of the
+    series finally differenced (delta method on alpha = 2 - 2 (r1 / (1 + r1) + d))."""
     z = np.asarray(z, float)
     t = np.arange(len(z), dtype=float)
     z = z - np.polyval(np.polyfit(t, z, 2), t)
@@ -84,7 +91,8 @@ def noise_id_decimated(z: np.ndarray, dmax: int) -> float:
         r1 = _lag1(z)
         delta = r1 / (1.0 + r1)
         if delta < 0.25 or d >= dmax:
-            return 2.0 - 2.0 * (delta + d)
+            se = 2.0 / (max(1.0 + r1, 1e-3) ** 2 * np.sqrt(max(len(z), 1)))
+            return 2.0 - 2.0 * (delta + d), float(se)
         z = np.diff(z)
         d += 1
 

@@ -10,7 +10,10 @@ kept, so long-tau intervals are never narrower than either reading).
 EDF: Greenhall & Riley (2003) for the finite-difference statistics (adev / hdev: S = 1,
 oadev / ohdev: S = m, mdev / tdev: F = 1; :func:`workbench.analysis.allan_ci.edf_greenhall`),
 with the counts of used pairs when gaps were skipped; totdev and mtotdev / ttotdev from NIST
-SP 1065 tables 7 and 8 (edf = b T / tau - c); Theo1 / TheoH beyond the oadev part from Howe &
+SP 1065 tables 7 and 8 (edf = b T / tau - c), mtotdev / ttotdev below m = 10 with the Greenhall
+MDEV EDF instead: table 8 overstates the EDF there (Monte Carlo coverage of white PM at m = 1:
+0.71 with it), and the EDF implied by Stable32's PHASE.DAT bounds is the MDEV's (x 1.012) at
+m = 1-8, then ~1.2x table 8 from m = 10 (docs/allan.md); Theo1 / TheoH beyond the oadev part from Howe &
 Tasset's Theo1 EDF (SP 1065 table 11); htotdev with the ohdev EDF (fewer degrees of freedom than
 its own: wider, conservative). MTIE and TIE rms get no interval (NaN). The interval is the
 chi-squared one at two-sided ``level``.
@@ -24,9 +27,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from workbench.analysis.allan_ci import chi2_ppf, edf_greenhall, noise_id_decimated
+from workbench.analysis.allan_ci import chi2_ppf, edf_greenhall, noise_id_spread
 from workbench.analysis.stability import Stability
 
+AMBIGUOUS_SE = 1.0  # standard errors of the lag-1 alpha within which a second noise type is considered
 MIN_POINTS_LAG1 = 30  # decimated points for the lag-1 method (Riley & Greenhall: reliable from ~30)
 _GREENHALL = {"adev": (2, False, False), "oadev": (2, True, False), "mdev": (2, True, True),
               "tdev": (2, True, True), "hdev": (3, False, False), "ohdev": (3, True, False),
@@ -34,6 +38,7 @@ _GREENHALL = {"adev": (2, False, False), "oadev": (2, True, False), "mdev": (2, 
 _TOT = {0: (1.50, 0.0), -1: (1.17, 0.22), -2: (0.93, 0.36)}  # SP 1065 table 7, alpha: (b, c)
 _MTOT = {2: (1.90, 2.1), 1: (1.20, 1.40), 0: (1.10, 1.2), -1: (0.85, 0.50), -2: (0.75, 0.31)}  # table 8
 NO_INTERVAL = ("mtie", "tierms")
+MTOT_MDEV_BELOW = 10  # mtotdev / ttotdev below this m take the Greenhall MDEV EDF
 
 
 @dataclass(frozen=True)
@@ -86,6 +91,8 @@ def edf_of(stat: str, alpha: int, m: int, n_phase: int, n_used: int | None = Non
             return edf_greenhall(alpha, 2, int(m), int(n_phase), True, False)
         return b * (n_phase - 1) / m - c
     if stat in ("mtotdev", "ttotdev"):
+        if m < MTOT_MDEV_BELOW:  # short taus: the MDEV's degrees of freedom (see the module docstring)
+            return edf_greenhall(max(alpha, -2), 2, int(m), int(n_phase), True, True)
         b, c = _MTOT[int(np.clip(alpha, -2, 2))]
         return b * (n_phase - 1) / m - c
     if stat in ("theo1", "theoh"):
@@ -93,16 +100,25 @@ def edf_of(stat: str, alpha: int, m: int, n_phase: int, n_used: int | None = Non
     raise ValueError(stat)
 
 
-def _identify(x: np.ndarray, m: np.ndarray, dmax: int) -> np.ndarray:
-    """Rounded alpha per factor from the lag-1 ACF of the decimated phase (NaN: too few points)."""
+def _identify(x: np.ndarray, m: np.ndarray, dmax: int) -> tuple[np.ndarray, np.ndarray]:
+    """Rounded alpha per factor from the lag-1 ACF of the decimated phase (NaN: too few points),
+    and, where the estimate lies within AMBIGUOUS_SE standard errors of the white / flicker PM
+    boundary, the other of the two (else the same value)."""
     out = np.full(len(m), np.nan)
+    other = np.full(len(m), np.nan)
+    lo_a = -2 if dmax == 2 else -4
     finite = np.isfinite(x)
     xs = x if finite.all() else np.interp(np.arange(len(x)), np.flatnonzero(finite), x[finite])
     for k, mk in enumerate(m):
         z = xs[::int(mk)][:1 << 16]
         if len(z) >= MIN_POINTS_LAG1:
-            out[k] = float(np.clip(np.round(noise_id_decimated(z, dmax)), -2 if dmax == 2 else -4, 2))
-    return out
+            a, se = noise_id_spread(z, dmax)
+            out[k] = float(np.clip(np.round(a), lo_a, 2))
+            ends = [float(np.clip(np.round(a + s * AMBIGUOUS_SE * se), lo_a, 2)) for s in (-1.0, 1.0)]
+            # only white vs flicker PM, where the lag-1 method is weakest (the other pairs stay as
+            # identified: their types agree with Stable32's and their coverage is within 95 +- 2 %)
+            other[k] = next((e for e in ends if e != out[k] and {e, out[k]} <= {1.0, 2.0}), out[k])
+    return out, other
 
 
 def intervals(curve: Stability, x: np.ndarray, level: float = 0.95, alpha: np.ndarray | None = None) -> StabilityCI:
@@ -118,7 +134,8 @@ def intervals(curve: Stability, x: np.ndarray, level: float = 0.95, alpha: np.nd
     if alpha is None:
         dmax = 3 if curve.stat in ("hdev", "ohdev", "htotdev") else 2
         m_id = np.maximum(np.round(0.75 * curve.m), 1) if curve.stat == "theo1" else curve.m
-        alpha = _identify(x, m_id, dmax)
+        alpha, other = _identify(x, m_id, dmax)
+        alpha = _conservative(curve, alpha, other)
         alpha = _fill(curve, alpha)
     alpha = np.asarray(alpha, float)
     theo_part = curve.stat == "theoh"
@@ -134,6 +151,17 @@ def intervals(curve: Stability, x: np.ndarray, level: float = 0.95, alpha: np.nd
     lo = curve.dev * np.sqrt(edf / chi2_ppf(1.0 - q, edf))
     hi = curve.dev * np.sqrt(edf / chi2_ppf(q, edf))
     return StabilityCI(curve, alpha, edf, lo, hi, level)
+
+
+def _conservative(curve: Stability, alpha: np.ndarray, other: np.ndarray) -> np.ndarray:
+    """Where the identification is ambiguous (``other`` differs), the exponent with fewer degrees
+    of freedom: flicker PM read as white PM on 30-300 decimated points would otherwise give
+    intervals covering ~0.9 instead of 0.95 (benchmarks/allan_ci_coverage.py)."""
+    out = alpha.copy()
+    stat = curve.stat if curve.stat != "theoh" else "theo1"
+    for k in np.flatnonzero(np.isfinite(alpha) & (other != alpha)):
+        out[k] = min((alpha[k], other[k]), key=lambda a: edf_of(stat, int(a), int(curve.m[k]), curve.n_phase))
+    return out
 
 
 def _fill(curve: Stability, alpha: np.ndarray) -> np.ndarray:
