@@ -70,3 +70,8 @@ def test_soft_iron_symmetric_factor_and_reported_rotation():
     assert "rotation part of the soft-iron correction (2°)" in dropped[0]
     assert fw.soft_iron(_set({"gyro": tc}), [], "x") is None
     assert fw.LAB["accel"] == "mg" and factor(fw.LAB["gyro"]) == pytest.approx(factor("deg/h"))
+
+
+def test_header_names_the_set_and_the_unit():
+    cal = _set({})
+    assert fw.header(cal, "PX4") == [f"# PX4 parameters from workbench calibration set {cal.id}", "# unit SN m"]

@@ -19,6 +19,12 @@ from workbench.units import label, show, to_unit, unit_of
 LAB = {triad: unit_of(triad, "bias") for triad in ("gyro", "accel", "mag")}  # the unit vocabulary
 
 
+def header(calset: CalibrationSet, vendor: str) -> list[str]:
+    """The first comment lines of a parameter file: which set of which unit it comes from."""
+    return [f"# {vendor} parameters from workbench calibration set {calset.id}",
+            f"# unit {calset.unit.serial} {calset.unit.model}".rstrip()]
+
+
 def fmt(value: float) -> str:
     """A parameter value with enough digits to round-trip a float32 (and more)."""
     return f"{float(value):.10g}"

@@ -25,7 +25,7 @@ import numpy as np
 from numpy.polynomial import polynomial as npoly
 
 from workbench.calset import CalibrationSet
-from workbench.exports._firmware import bias_cubic, fmt, inertial_dropped, soft_iron
+from workbench.exports._firmware import bias_cubic, fmt, header, inertial_dropped, soft_iron
 from workbench.registry import Export
 from workbench.units import factor
 
@@ -107,9 +107,8 @@ def parameters(calset: CalibrationSet) -> tuple[list[tuple[str, float]], list[st
 def export(calset: CalibrationSet) -> Export:
     """``.parm`` text (``NAME,VALUE`` per line, ``#`` comments)."""
     rows, dropped = parameters(calset)
-    head = [f"# ArduPilot parameters from workbench calibration set {calset.id}",
-            f"# unit {calset.unit.serial} {calset.unit.model}".rstrip(),
-            "# sensor frame = body frame assumed (AHRS_ORIENTATION none); IMU 1 and compass 1;",
-            "# ArduPilot re-learns INS_GYROFFS at boot unless INS_GYRO_CAL = 0"]
+    head = header(calset, "ArduPilot") + [
+        "# sensor frame = body frame assumed (AHRS_ORIENTATION none); IMU 1 and compass 1;",
+        "# ArduPilot re-learns INS_GYROFFS at boot unless INS_GYRO_CAL = 0"]
     body = [f"{name},{int(value) if name.endswith('ENABLE') else fmt(value)}" for name, value in rows]
     return Export("\n".join(head + body) + "\n", dropped)

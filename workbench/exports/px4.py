@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from workbench.calset import CalibrationSet
-from workbench.exports._firmware import bias_cubic, fmt, inertial_dropped, soft_iron
+from workbench.exports._firmware import bias_cubic, fmt, header, inertial_dropped, soft_iron
 from workbench.registry import Export
 from workbench.units import factor
 
@@ -83,10 +83,9 @@ def parameters(calset: CalibrationSet) -> tuple[list[tuple[str, float, int]], li
 def export(calset: CalibrationSet) -> Export:
     """QGroundControl parameter file text (tab separated: vehicle, component, name, value, type)."""
     rows, dropped = parameters(calset)
-    head = [f"# PX4 parameters from workbench calibration set {calset.id}",
-            f"# unit {calset.unit.serial} {calset.unit.model}".rstrip(),
-            "# sensor frame = body frame assumed; set TC_A0_ID, TC_G0_ID, CAL_ACC0_ID, CAL_GYRO0_ID, CAL_MAG0_ID "
-            "to the device ids of the vehicle",
-            "#", "# Vehicle-Id\tComponent-Id\tName\tValue\tType"]
+    head = header(calset, "PX4") + [
+        "# sensor frame = body frame assumed; set TC_A0_ID, TC_G0_ID, CAL_ACC0_ID, CAL_GYRO0_ID, CAL_MAG0_ID "
+        "to the device ids of the vehicle",
+        "#", "# Vehicle-Id\tComponent-Id\tName\tValue\tType"]
     body = [f"1\t1\t{name}\t{int(value) if kind == _INT else fmt(value)}\t{kind}" for name, value, kind in rows]
     return Export("\n".join(head + body) + "\n", dropped)
