@@ -105,3 +105,15 @@ PROTOCOL_TYPES = (TriadFit, ThermalResult, NorthFinding)
 def _analysis_results(payload) -> list:
     values = payload.values() if isinstance(payload, dict) else [payload]
     return [v for v in values if isinstance(v, PROTOCOL_TYPES)]
+
+
+@pytest.mark.parametrize("name", sorted(SHORT))
+def test_a_misspelt_option_is_refused_naming_the_declared_one(name):
+    from workbench.errors import ProcedureError
+    from workbench.options import split
+
+    proc = registry.procedure(name)
+    for opt in declarations(proc)[:3]:
+        typo = opt.name[:-1] + ("x" if opt.name[-1] != "x" else "y")
+        with pytest.raises(ProcedureError, match=rf"{name}: unknown option '{typo}' \(did you mean {opt.name}\?\)"):
+            split(proc, {typo: opt.default})
