@@ -350,7 +350,8 @@ def calibrate_free(session: Session, method: str = "auto", robust: bool | str = 
     quality = holdout_quality(fitter(cal.fit.method), cal.fit, data.mag, accel, data.t, q)
     _, first, second = _halves(data.t)
     try:
-        scales = split_half_scale(fitter(cal.fit.method)(first), fitter(cal.fit.method)(second))
+        half_a, half_b = fitter(cal.fit.method)(first), fitter(cal.fit.method)(second)
+        scales = split_half_scale(half_a, half_b)
     except AnalysisError:
         scales = {}
     warnings = cal.warnings
@@ -358,6 +359,9 @@ def calibrate_free(session: Session, method: str = "auto", robust: bool | str = 
     if any(k > 1.0 for k, _ in scales.values()):
         fit = scaled_sigmas(fit, {g: k for g, (k, _) in scales.items()})
         shown = ", ".join(f"{g} x{k:.2f} (rms z {z:.2f})" for g, (k, z) in scales.items() if k > 1.0)
+        if scales.get("hard iron", (1.0, 0.0))[0] > 1.0:
+            drift = half_b.bias - half_a.bias
+            shown += f"; the hard iron moves by ({', '.join(f'{v:+.2f}' for v in drift)}) µT from the first half to the second"
         warnings = (*warnings, f"sigmas scaled where the fits of the two halves in time differ by more than their "
                                f"sigmas (model misfit or correlated residuals): {shown}")
     return replace(cal, fit=fit, warnings=warnings, free_quality=quality)
