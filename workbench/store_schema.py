@@ -27,6 +27,8 @@ class Base(DeclarativeBase):
 
 
 class UnitRow(Base):
+    """A unit under test: serial, model, first seen (ISO-8601 UTC)."""
+
     __tablename__ = "units"
     serial: Mapped[str] = mapped_column(String(128), primary_key=True)
     model: Mapped[str] = mapped_column(String(128), default="")
@@ -34,6 +36,8 @@ class UnitRow(Base):
 
 
 class SetRow(Base):
+    """A stored calibration set: id, unit, version per serial, procedures, SHA-256 and canonical JSON body."""
+
     __tablename__ = "calibration_sets"
     __table_args__ = (UniqueConstraint("serial", "version", name="uq_set_serial_version"),)
     id: Mapped[str] = mapped_column(String(64), primary_key=True)
@@ -46,6 +50,8 @@ class SetRow(Base):
 
 
 class ApprovalRow(Base):
+    """The approval of a set: by whom, when, comment."""
+
     __tablename__ = "approvals"
     set_id: Mapped[str] = mapped_column(ForeignKey("calibration_sets.id"), primary_key=True)
     approved_by: Mapped[str] = mapped_column(String(128))
@@ -54,6 +60,8 @@ class ApprovalRow(Base):
 
 
 class SessionRow(Base):
+    """A recorded session: id, unit, procedure, folder, samples SHA-256, step count, complete or not."""
+
     __tablename__ = "sessions"
     id: Mapped[str] = mapped_column(String(64), primary_key=True)
     serial: Mapped[str] = mapped_column(ForeignKey("units.serial"), index=True)
@@ -66,6 +74,8 @@ class SessionRow(Base):
 
 
 class ResultRow(Base):
+    """An analysis result: procedure, session, unit, calibration set id, result.json body."""
+
     __tablename__ = "results"
     id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
     procedure: Mapped[str] = mapped_column(String(64), index=True)

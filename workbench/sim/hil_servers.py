@@ -68,9 +68,11 @@ class LineServer:
                                         name=f"hil-{device}", daemon=True)
 
     def start(self) -> None:
+        """Serve in a daemon thread."""
         self._thread.start()
 
     def stop(self) -> None:
+        """Stop serving and close every connection."""
         self.server.shutdown()
         self.server.server_close()
         self._close_all()
@@ -154,6 +156,7 @@ class ModbusChamberServer:
         return None
 
     def start(self) -> None:
+        """Serve the register map on 127.0.0.1 in the server's own event-loop thread."""
         from pymodbus.server import ModbusTcpServer
         from pymodbus.simulator import DataType, SimData, SimDevice
 
@@ -174,6 +177,7 @@ class ModbusChamberServer:
         asyncio.run_coroutine_threadsafe(serve(), self._loop).result(timeout=5.0)
 
     def stop(self) -> None:
+        """Shut the server down and stop its event loop."""
         if self.server is not None:
             asyncio.run_coroutine_threadsafe(self.server.shutdown(), self._loop).result(timeout=5.0)
         self._loop.call_soon_threadsafe(self._loop.stop)
@@ -182,6 +186,7 @@ class ModbusChamberServer:
 
 
 def port_of(address: str, field: str) -> int:
+    """The port of a 127.0.0.1 / localhost ``address`` (VISA resource or socket URL); RigError naming ``field``."""
     m = re.search(r"(?:127\.0\.0\.1|localhost)(?:::|:)(\d+)", address)
     if not m:
         raise RigError(f"hil: {field} {address!r} is not a 127.0.0.1 address with a port")
