@@ -165,13 +165,14 @@ def _coefficient_checks(triad: str, tc: TriadCalibration, spec) -> list[Failure]
     for axis, b in enumerate(m.bias):
         if ts is None:
             limit = GENERIC[triad]
-            src = "a consumer MEMS board's (grade unknown)"
+            src = "a consumer MEMS board's bound; grade unknown"
         else:
             limit = float(_limit(ts.bias, tc.sigma_of("bias"))[axis]) + (EARTH_RATE if triad == "gyro" else 0.0)
             src = f"{WIDE:g}x the {spec.name} grade's 1σ"
         if abs(b) > limit:
+            hint = _mixup_hint(triad, abs(b), 0.0, limit) if triad == "gyro" else ""
             out.append(Failure(f"{triad}.bias", f"{triad} bias {'xyz'[axis]} = {_show(triad, 'bias', b)} exceeds "
-                                                  f"±{_show(triad, 'bias', limit)} ({src})"))
+                                                  f"±{_show(triad, 'bias', limit)} ({src}){hint}"))
     if ts is None:
         return out
     sm, sm_sig = m.scale_misalignment, tc.sigma_of("scale_misalignment")
@@ -330,7 +331,7 @@ def _thermal_allowance(ts, dt: float) -> np.ndarray:
 def _mixup_hint(triad: str, value: float, lo: float, hi: float) -> str:
     """``'; gyro in deg/s? values look 57.3x too large'`` when ``value`` read in another unit lies in [lo, hi]."""
     for name, f in _MIXUPS[triad]:
-        if lo <= value * f <= hi:
+        if lo <= float(value) * f <= hi:  # (a Python float: 1e308 x 57 is inf, not a warning)
             ratio = 1.0 / f if f < 1 else f
             size = "large" if f < 1 else "small"
             return f"; {triad} in {name}? values look {ratio:.3g}x too {size}"

@@ -244,3 +244,19 @@ def test_an_import_whose_axis_check_failed_is_refused(tmp_path, db, spec):
     assert db.list_sets() == []
     res = run_analysis(multiposition, session, store=db, force=True)
     assert "gy <- -gy" in forced_failures(db.get_set(res.calibration.id))[0]
+
+
+@pytest.mark.skipif(MARG is None, reason="shared/data/marg_mpu6050_hmc5883l is not beside the checkout")
+def test_real_gyro_in_deg_s_declared_rad_s_is_refused(tmp_path, db, capsys):
+    # the MARG board held still, its gyro (deg/s in the file) declared rad/s in the profile: the still-stretch
+    # bias of ~4.5 °/s reads 258 °/s; an unknown grade's bound is 30 °/s per axis
+    text = (ROOT / "fixtures" / "import_profiles" / "marg_mpu6050_hmc5883l.yaml").read_text()
+    text = text.replace("_dps, unit: deg/s}", "_dps, unit: rad/s}")
+    profile = tmp_path / "rad.yaml"
+    profile.write_text(text)
+    session = tmp_path / "s"
+    assert main(["import", str(profile), str(MARG / "unmoved-x-pointing-up"), "--out", str(session)]) == 0
+    capsys.readouterr()
+    err = _one_line_exit_2(capsys, ["analyze", "multiposition", str(session)])
+    assert "gyro bias x = " in err and "gyro in deg/s? values look 57.3x too large" in err
+    assert db.list_sets() == []
