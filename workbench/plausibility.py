@@ -30,6 +30,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from functools import lru_cache
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -37,6 +38,9 @@ from workbench import units
 from workbench.calset import CalibrationSet, TriadCalibration
 from workbench.earth import EARTH_RATE
 from workbench.errors import WorkbenchError
+
+if TYPE_CHECKING:
+    from workbench.grade_types import SensorSpec
 
 WIDE = 10.0  # a coefficient is implausible beyond WIDE x the grade's 1-sigma spread (p < 1e-20 by chance)
 EST_SIGMAS = 3.0  # ... plus this many of the estimate's own sigma (capped at WIDE x the grade's spread)
@@ -68,13 +72,13 @@ class Failure:
     text: str
 
 
-def grade_of(model: str):
+def grade_of(model: str) -> SensorSpec | None:
     """The :class:`SensorSpec` of a unit model that names a grade fixture, else None."""
     return _grade(str(model or ""))
 
 
 @lru_cache(maxsize=32)
-def _grade(model: str):
+def _grade(model: str) -> SensorSpec | None:
     from workbench.grade_fixtures import grade_names, load_spec
 
     return load_spec(model) if model in grade_names() else None
