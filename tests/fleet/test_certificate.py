@@ -97,3 +97,28 @@ def test_pdf_runs_no_script_and_fetches_nothing(tmp_path):
     finally:
         server.shutdown()
     assert hits == []  # neither the image nor the script's request reached the network
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="no chromium on this machine")
+def test_the_printing_browser_blocks_javascript(tmp_path):
+    """The profile print_pdf uses: a script in the page does not run (the DOM Chromium prints is the static one)."""
+    import subprocess
+
+    from workbench.fleet.certificate import chromium_command, new_profile
+
+    page = tmp_path / "s.html"
+    page.write_text("<html><body><p id='x'>static</p>"
+                    "<script>document.getElementById('x').textContent = 'script ran';</script></body></html>")
+    cmd = chromium_command(CHROMIUM, new_profile(tmp_path / "profile"), "--dump-dom", page.as_uri())
+    dom = subprocess.run(cmd, capture_output=True, text=True, timeout=120, stdin=subprocess.DEVNULL).stdout
+    assert "<p id=\"x\">static</p>" in dom and "script ran</p>" not in dom
+
+
+def test_reference_equipment_from_the_rig_file_path_as_from_its_name():
+    """Sessions record the rig file's path; reading it with the schema alone gives what load_rig_config gives."""
+    from workbench.fleet.certificate import _reference_equipment
+    from workbench.rigconfig import RIGS_DIR
+
+    by_name = _reference_equipment([{"id": "a", "rig_config": "sim"}])
+    by_path = _reference_equipment([{"id": "b", "rig_config": str(RIGS_DIR / "sim.yaml")}])
+    assert by_name == by_path and by_name[0]  # the simulated rig lists its (simulated) reference instruments

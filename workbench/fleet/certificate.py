@@ -12,15 +12,20 @@ nothing is re-analysed or typed in:
 - the approval recorded in the store; a certificate number derived from the set.
 
 User text (serials, names, comments) is escaped (Jinja autoescape on). The PDF is printed by
-headless Chromium (through Playwright) with JavaScript disabled and every network request refused; the page also
-carries a Content-Security-Policy that allows no script and no remote resource.
+one headless Chromium process with JavaScript blocked in its profile and every network request
+sent nowhere; the page also carries a Content-Security-Policy that allows no script and no remote
+resource.
 """
 
 from __future__ import annotations
 
 import base64
 import json
+import os
 import shutil
+import signal
+import subprocess
+import tempfile
 import time
 from collections.abc import Callable
 from datetime import UTC, datetime
@@ -87,10 +92,25 @@ def _ambient(manifest: dict) -> str:
     return "; ".join(parts) or "not recorded"
 
 
+def _rig_equipment(ref: str) -> tuple[str, list[dict]]:
+    """(rig name, reference instruments) of the rig file a session names: a YAML path as the runner
+    records it is read with the schema alone (without the SI conversion of
+    :func:`workbench.rigconfig.load_rig_config` and what it imports); a rig name through it."""
+    path = Path(ref)
+    if not path.suffix or not path.is_file():
+        from workbench.rigconfig import load_rig_config
+
+        cfg = load_rig_config(ref)
+        return cfg.name, [dict(r) for r in cfg.reference_equipment]
+    from workbench.rigschema import parse_rig_file
+    from workbench.safe_yaml import load_yaml_file
+
+    f = parse_rig_file(load_yaml_file(path), str(path))
+    return f.name or f.driver, [r.model_dump() for r in f.reference_equipment]
+
+
 def _reference_equipment(manifests: list[dict]) -> tuple[list[dict], list[str]]:
     """Reference instruments of the rig configurations the sessions were recorded with (deduplicated)."""
-    from workbench.rigconfig import load_rig_config
-
     seen, equipment, notes = set(), [], []
     for m in manifests:
         ref = m.get("rig_config")
@@ -98,15 +118,14 @@ def _reference_equipment(manifests: list[dict]) -> tuple[list[dict], list[str]]:
             continue
         seen.add(ref)
         try:
-            cfg = load_rig_config(ref)
+            name, instruments = _rig_equipment(ref)
         except WorkbenchError as exc:
             notes.append(f"rig configuration of session {m.get('id', '?')[:8]} not readable ({exc}): "
                          "its reference equipment is not stated")
             continue
-        for item in cfg.reference_equipment:
-            equipment.append({"rig": cfg.name, **item})
-        if not cfg.reference_equipment:
-            notes.append(f"rig {cfg.name} ({ref}) lists no reference equipment")
+        equipment += [{"rig": name, **item} for item in instruments]
+        if not instruments:
+            notes.append(f"rig {name} ({ref}) lists no reference equipment")
     return equipment, notes
 
 
@@ -168,41 +187,52 @@ def render_certificate(cal: CalibrationSet, store, progress: Progress | None = N
         software=__version__)
 
 
+# a fresh browser profile with JavaScript blocked for every site (Chromium's content setting 2 = block)
+PROFILE_PREFERENCES = {"profile": {"default_content_setting_values": {"javascript": 2}}}
+
+
+def chromium_command(chromium: str, profile: Path, *action: str) -> list[str]:
+    """The headless Chromium command line used for certificates: a throw-away ``profile`` folder
+    (:data:`PROFILE_PREFERENCES`, no script runs), every request sent to a proxy that does not exist
+    (nothing is fetched, loopback included), then ``action`` (e.g. ``--print-to-pdf=F URL``)."""
+    return [chromium, *CHROMIUM_ARGS, f"--user-data-dir={profile}", *action]
+
+
+def new_profile(folder: Path) -> Path:
+    """Write the JavaScript-blocking browser profile into ``folder`` (returned)."""
+    (folder / "Default").mkdir(parents=True, exist_ok=True)
+    (folder / "Default" / "Preferences").write_text(json.dumps(PROFILE_PREFERENCES))
+    return folder
+
+
 def print_pdf(html_path: Path, pdf_path: Path, chromium: str, timeout_s: float = 120.0) -> Path:
-    """Print ``html_path`` to ``pdf_path`` (A4, the page's own margins and page numbers) with headless Chromium.
+    """Print ``html_path`` to ``pdf_path`` (A4, the page's own ``@page`` margins and page numbers).
 
-    Driven through Playwright with JavaScript disabled in the page's context and every request
-    that is not the file itself or an inline ``data:`` image aborted: nothing is fetched from a
-    network and no script runs, whatever the page holds.
+    One headless Chromium process prints the file (``--print-to-pdf``; no driver process between):
+    JavaScript is blocked in its profile, every request goes to a proxy that does not exist, and
+    the page's Content-Security-Policy allows no script and no remote resource. The PDF is
+    written beside ``pdf_path`` and renamed into place, so a reader never sees half of one.
     """
-    from playwright.sync_api import Error as PlaywrightError
-    from playwright.sync_api import sync_playwright
-
-    target = html_path.resolve().as_uri()
-
-    def only_local(route) -> None:
-        url = route.request.url
-        if url == target or url.startswith("data:"):
-            route.continue_()
-        else:
-            route.abort()
-
-    try:
-        with sync_playwright() as pw:
-            browser = pw.chromium.launch(executable_path=chromium, args=["--no-sandbox", *CHROMIUM_ARGS[2:]])
-            try:
-                context = browser.new_context(java_script_enabled=False, offline=True)
-                context.route("**/*", only_local)
-                page = context.new_page()
-                page.goto(target, wait_until="load", timeout=timeout_s * 1000)
-                page.pdf(path=str(pdf_path), prefer_css_page_size=True, print_background=True)
-            finally:
-                browser.close()
-    except PlaywrightError as exc:
-        raise WorkbenchError(f"{pdf_path}: Chromium could not print the certificate "
-                             f"({str(exc).splitlines()[0]})") from None
-    if not pdf_path.exists():
-        raise WorkbenchError(f"{pdf_path}: Chromium could not print the certificate")
+    tmp_pdf = pdf_path.with_name(f".{pdf_path.name}.tmp")
+    tmp_pdf.unlink(missing_ok=True)
+    with tempfile.TemporaryDirectory(prefix="workbench-chromium-") as tmp:
+        cmd = chromium_command(chromium, new_profile(Path(tmp)), "--no-pdf-header-footer",
+                               f"--print-to-pdf={tmp_pdf}", html_path.resolve().as_uri())
+        proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                text=True, start_new_session=True)
+        try:
+            _, stderr = proc.communicate(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)  # its own process group: renderer and GPU processes too
+            proc.communicate()
+            tmp_pdf.unlink(missing_ok=True)
+            raise WorkbenchError(f"{pdf_path}: Chromium did not print the certificate within {timeout_s:g} s") from None
+    ok = tmp_pdf.exists() and tmp_pdf.read_bytes()[:5] == b"%PDF-"
+    if not ok:
+        tmp_pdf.unlink(missing_ok=True)
+        last = next((line for line in reversed(stderr.splitlines()) if line.strip()), "no output")
+        raise WorkbenchError(f"{pdf_path}: Chromium could not print the certificate (exit {proc.returncode}: {last})")
+    tmp_pdf.replace(pdf_path)
     return pdf_path
 
 
