@@ -97,8 +97,11 @@ def option_inputs(proc: ModuleType, key: str, stage: str | None = None) -> dict:
 
 
 def build_sequence(proc: ModuleType, grade: Path, options: Mapping | None = None):
-    """The procedure's Sequence for the grade fixture (``proc.sequence(spec, **options)``)."""
-    return proc.sequence(load_spec(grade), **dict(options or {}))
+    """The procedure's Sequence for the grade fixture: ``proc.sequence(spec, **sequence options)``, the
+    options validated and kept for the sequence stage (analysis and rig options are checked, left out)."""
+    from workbench.options import validate
+
+    return proc.sequence(load_spec(grade), **validate(proc, options, "sequence"))
 
 
 def sequence_table(seq: Any) -> pd.DataFrame:

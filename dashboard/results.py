@@ -99,16 +99,16 @@ def stored_result(procedure: str, folder: Path) -> dict | None:
 
 def show_stored_result(procedure: str, folder: Path, row: dict) -> None:
     """A stored result as it was computed: its summary, warnings, options and the figures drawn then."""
-    from workbench.stored import stored_figures, stored_options
+    from workbench.stored import option_text, stored_figures, stored_options
 
     doc = row["result"]
     options = stored_options(folder, procedure, doc)
     st.success(f"Stored result of {row['created']} (as computed then; nothing re-analysed)")
-    st.caption("Options it was computed with: " + (", ".join(f"{k} = {json.dumps(v)}" for k, v in options.items())
+    st.caption("Options it was computed with: " + (", ".join(f"{k} = {option_text(v)}" for k, v in options.items())
                                                   if options else "the defaults" if options == {} else "not recorded"))
     summary = [str(s) for s in doc.get("summary", [])]
     if summary:
-        st.code("\n".join(summary), language=None)
+        st.code("\n".join(summary), language=None, wrap_lines=True)
     for w in doc.get("warnings", []):
         st.warning(str(w))
     with st.expander("result.json"):
@@ -194,7 +194,7 @@ def show_result(result: ProcedureResult | Path, figures: bool = True) -> None:
             with st.expander("result.json"):
                 st.json(doc)
     if summary:
-        st.code("\n".join(summary), language=None)
+        st.code("\n".join(summary), language=None, wrap_lines=True)
     for w in warnings:
         st.warning(w)
     if cal_id and in_store(cal_id):  # name a calibration set only when the store holds it

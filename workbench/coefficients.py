@@ -157,8 +157,15 @@ def value_text(value: float, digits: int = 5) -> str:
 
 
 def sigma_text(sigma: float, k: float = 1.0) -> str:
-    """k-sigma uncertainty text, 'not observed' for NaN."""
-    return "not observed" if not np.isfinite(sigma) else f"{k * sigma:.2g}"
+    """k-sigma uncertainty to two significant digits ('140', '0.0061'; exponent only below 1e-4 or
+    from 1e6 on), 'not observed' for NaN."""
+    if not np.isfinite(sigma):
+        return "not observed"
+    u = k * sigma
+    if u == 0 or not 1e-4 <= abs(u) < 1e6:
+        return f"{u:.2g}"
+    r = float(f"{u:.2g}")  # two significant digits (9.96 -> 10)
+    return f"{r:.{max(1 - int(np.floor(np.log10(abs(r)))), 0)}f}"
 
 
 def ci_text(ci: tuple[float, float] | None) -> str:

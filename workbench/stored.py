@@ -42,3 +42,19 @@ def stored_figures(session_dir: str | Path | None) -> list[Path]:
     if not session_dir:
         return []
     return sorted((Path(session_dir).parent / "figures").glob("*.png"))
+
+
+def _rounded(value):
+    if isinstance(value, float):
+        return float(f"{value:.4g}")
+    if isinstance(value, list):
+        return [_rounded(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _rounded(v) for k, v in value.items()}
+    return value
+
+
+def option_text(value) -> str:
+    """A stored option value for people: a string as it is, anything else as JSON with floats to
+    4 significant digits (``[0.058023922532, 0.0568]`` -> ``'[0.05802, 0.0568]'``)."""
+    return value if isinstance(value, str) else json.dumps(_rounded(value))

@@ -11,6 +11,7 @@ import streamlit as st
 
 from dashboard import charts, forms, jobs, results, ui
 from workbench.errors import WorkbenchError
+from workbench.options import declarations
 
 TITLE = "Run"
 POLL_S = 1.0  # s between progress polls of a running run
@@ -41,7 +42,8 @@ def new_run_form() -> None:
         return
     if st.button("Start run", type="primary", key="run.start"):
         try:
-            changed = {k: v for k, v in options.items() if v != proc.DEFAULTS.get(k)}
+            defaults = {o.name: o.default for o in declarations(proc)}  # sequence, analysis and rig options
+            changed = {k: v for k, v in options.items() if v != defaults.get(k)}
             folder = jobs.start_run(proc.NAME, grade, seed=seed, options=changed,
                                       expected_s=float(seq.duration_s), n_steps=len(seq.expand()))
         except (OSError, WorkbenchError) as exc:

@@ -111,7 +111,7 @@ with tab_browse:
         ui.show_error(exc)
         st.stop()
 
-    c1, c2, c3, c4 = st.columns([3, 2, 1, 1])
+    c1, c2, c3, c4 = st.columns([3, 2, 1.2, 1.6])
     c1.metric("Unit", f"{session.unit.serial}")
     c2.metric("Procedure", session.procedure or "—")
     c3.metric("Samples", f"{len(session.samples):,}")
@@ -126,7 +126,7 @@ with tab_browse:
                            "table_rate_dps": round(float(np.degrees(s.table_rate)), 4),
                            "temperature_c": s.temperature_c} for s in session.steps])
     st.subheader("Steps")
-    st.dataframe(steps, hide_index=True, height=min(35 * (len(steps) + 1) + 3, 300))
+    st.dataframe(steps.rename(columns=ui.lab_label), hide_index=True, height=min(35 * (len(steps) + 1) + 3, 300))
 
     st.subheader("Samples")
     options = ["all steps", *[f"{s.index}: {s.kind} {s.label}".strip() for s in session.steps]]

@@ -10,7 +10,7 @@ import streamlit as st
 from dashboard import forms, results, ui
 from workbench.registry import procedure
 
-TITLE = "Allan variance"
+TITLE = "Allan deviation"
 PROC = procedure("allan")
 
 

@@ -64,6 +64,48 @@ def _highlight(value: float) -> str:
     return "background-color: #fde68a" if abs(value) > WARN_SIGMA else ""
 
 
+def certificate_section(db, calset, version: int, stem: str) -> None:
+    """Render the set's certificate on request (from the store only, as ``workbench certificate``):
+    HTML and, where Chromium is installed, PDF downloads. Kept for the set and its approval state."""
+    from workbench.fleet.certificate import certificate_number, print_pdf, render_certificate
+
+    key = (calset.id, (db.approval(calset.id) or {}).get("approved_at"))
+    if st.button("Render the certificate", key="cal.cert"):
+        import shutil
+        import tempfile
+        from pathlib import Path
+
+        try:
+            with st.spinner("Rendering the certificate (HTML, then PDF with Chromium) ..."):
+                html = render_certificate(calset, db)
+                pdf = None
+                chromium = shutil.which("chromium") or shutil.which("chromium-browser")
+                if chromium:
+                    with tempfile.TemporaryDirectory(prefix="workbench-cert-") as tmp:
+                        page = Path(tmp) / "certificate.html"
+                        page.write_text(html)
+                        pdf = print_pdf(page, page.with_suffix(".pdf"), chromium).read_bytes()
+            st.session_state["cal.cert.doc"] = (key, html, pdf)
+        except WorkbenchError as exc:
+            ui.show_error(exc, "certificate")
+    doc = st.session_state.get("cal.cert.doc")
+    if not doc or doc[0] != key:
+        st.caption("Rendered from the store only: coefficients with U (k = 2), approval, reference equipment, "
+                   "ambient conditions, the stored figures.")
+        return
+    _, html, pdf = doc
+    st.caption(f"Certificate {certificate_number(calset, version)} rendered"
+               + ("" if key[1] else " (a draft: the set is not approved)") + ".")
+    c1, c2 = st.columns(2)
+    c1.download_button("certificate (.html)", html, file_name=f"{stem}_certificate.html", mime="text/html",
+                       key="cal.cert.html")
+    if pdf is not None:
+        c2.download_button("certificate (.pdf)", pdf, file_name=f"{stem}_certificate.pdf", mime="application/pdf",
+                           key="cal.cert.pdf")
+    else:
+        c2.caption("No Chromium on this machine: HTML only.")
+
+
 st.title("Calibration sets")
 try:
     db = ui.store()
@@ -144,6 +186,9 @@ with tab_show:
     with st.expander("Canonical JSON"):
         st.json(json.loads(calset.to_json()))
 
+    st.subheader("Certificate")
+    certificate_section(db, calset, version, f"{serial}_v{version}")
+
 with tab_diff:
     if len(versions) < 2:
         st.info("Only one version: nothing to compare.")
@@ -162,7 +207,7 @@ with tab_diff:
             n_alarm = int((table["change (σ)"].abs() > ALARM_SIGMA).sum())
             n_changed = int(table["change (σ)"].notna().sum())
             st.caption(f"{len(table)} coefficients differ: {n_changed} observed in both versions, {n_alarm} of them "
-                       f"by more than {ALARM_SIGMA:g} σ (σ = √(σ_old² + σ_new²)); {len(table) - n_changed} not "
+                       f"by more than {ALARM_SIGMA:g} σ (σ = √(σA² + σB²)); {len(table) - n_changed} not "
                        "observed in one version (A = old, B = new): no change in σ is stated for those.")
             st.dataframe(table.style.map(_highlight, subset=["change (σ)"]).format({"change (σ)": "{:+.2f}"}),
                          hide_index=True)

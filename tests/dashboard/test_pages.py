@@ -300,7 +300,7 @@ def test_sessions_browse_steps_and_plots(stored_session):
     assert at.metric[0].value == "DASH-001" and at.metric[2].value == "200"
     steps = at.dataframe[0].value
     # 100 samples at 10 Hz: t_start..t_end = first sample .. last sample + half a sample period = 9.95 s
-    assert list(steps["kind"]) == ["static", "static"] and list(steps["duration_s"]) == [9.95, 9.95]
+    assert list(steps["kind"]) == ["static", "static"] and list(steps["duration (s)"]) == [9.95, 9.95]
     at.selectbox(key="sess.step").select("1: static x-up").run()
     assert not at.exception
     assert any("accel (body frame)" in c.value for c in at.caption)

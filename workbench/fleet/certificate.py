@@ -39,7 +39,7 @@ from workbench.calset import TRIADS, CalibrationSet, atomic_write_text
 from workbench.coefficients import TRIAD_TITLES, ci_text, noise_rows, sigma_text, thermal_reference, triad_rows
 from workbench.coefficients import value_text
 from workbench.errors import WorkbenchError
-from workbench.stored import stored_figures, stored_options
+from workbench.stored import option_text, stored_figures, stored_options
 
 TEMPLATES = Path(__file__).resolve().parents[1] / "templates"
 COVERAGE_K = 2.0  # expanded uncertainty U = k u (about 95 % coverage for a normal distribution)
@@ -161,7 +161,7 @@ def _sessions(cal: CalibrationSet, store, progress: Progress) -> tuple[list[dict
                     "ambient": _ambient(manifest) if manifest is not None else "not recorded",
                     "summary": [str(s) for s in result.get("summary", [])],
                     "warnings": [str(w) for w in result.get("warnings", [])],
-                    "options": {k: json.dumps(v) if not isinstance(v, str) else v for k, v in options.items()},
+                    "options": {k: option_text(v) for k, v in options.items()},
                     "software": result.get("software_version", ""),
                     "figures": figures, "manifest": manifest})
     return out, notes
