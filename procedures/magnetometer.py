@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from workbench import units
-from workbench.analysis.mag_free import calibrate_free
+from workbench.analysis.mag_free import calibrate_free, hand_steps
 from workbench.analysis.mag_select import METHODS
 from workbench.analysis.magnetometer import calibrate, points_from_session, triad_calibration
 from workbench.calset import CalibrationSet
@@ -89,7 +89,7 @@ def analyze(session: Session, **options) -> ProcedureResult:
     norm = o["field_norm_ut"] if o["field_norm_ut"] is not None else session.site.field_norm_ut
     norm = None if norm is None else float(norm)
     reference = _igrf(session) if o["igrf"] else None
-    if session.steps_of_kind("free"):  # by hand: gravity from the unit's own accelerometer, never the table
+    if hand_steps(session):  # by hand: gravity from the unit's own accelerometer, never the table
         cal = calibrate_free(session, method=str(o["method"]), robust=o["robust"], field_norm_ut=norm,
                              accel_model=accel, reference=reference)
     else:

@@ -113,3 +113,15 @@ def test_a_unit_left_still_is_refused_naming_the_cloud():
     session, _ = handheld_session(unit, 6, duration_s=20.0, still_s=60.0)  # never turned
     with pytest.raises(AnalysisError, match=r"not turned enough for a magnetometer fit \(raw cloud .* µT"):
         calibrate_free(session)
+
+
+def test_a_turn_declared_by_hand_never_uses_its_table_angle():
+    from dataclasses import replace as dc_replace
+
+    unit = draw_unit(SPEC, 5)
+    session, _ = handheld_session(unit, 5, duration_s=60.0, still_s=0.0)
+    # as an import profile declares a hand-made turn: kind rate, a commanded rate, by_hand
+    step = dc_replace(session.steps[0], kind="rate", table_rate=0.5, extra={"by_hand": True, "turn_deg": 360.0})
+    result = proc.analyze(dc_replace(session, steps=[step]))
+    assert result.result["method"] != "attitude" and "step 0 (by hand, no table attitude)" in result.result["reason"]
+    assert "vs table" not in "\n".join(result.summary)

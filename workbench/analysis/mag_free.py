@@ -1,4 +1,5 @@
-"""Magnetometer calibration from a unit turned by hand (``free`` steps): no table, gravity from the unit.
+"""Magnetometer calibration from a unit turned by hand (``free`` steps, or turns declared ``by_hand``): no table,
+gravity from the unit.
 
 On a ``free`` step nothing but the unit's own sensors knows the attitude, so the fit never uses a
 table angle or mount. The points (:func:`free_points`) are block means (``block_s``) of the
@@ -63,6 +64,7 @@ class FreeData:
     still_s: float
     steps: tuple[int, ...]
     spike_t: np.ndarray
+    free: bool = True  # all of them of kind free (else turns declared by hand)
 
     @property
     def uses_still(self) -> bool:
@@ -79,13 +81,20 @@ class FreeData:
     def describe(self) -> str:
         """One phrase naming the data: steps, blocks fitted and why, still stretches."""
         names = ", ".join(str(s) for s in self.steps)
-        head = (f"free step{'s' if len(self.steps) > 1 else ''} {names} (by hand, no table attitude), "
+        head = (f"{'free step' if self.free else 'step'}{'s' if len(self.steps) > 1 else ''} {names} "
+                f"(by hand, no table attitude), "
                 f"{self.still_stretches} still stretch(es) ({self.still_s:.1f} s): ")
         head += f"all {len(self.t)} {BLOCK_S * 1e3:g}-ms blocks carry the field norm, "
         if self.uses_still:
             return head + f"the {int(self.still.sum())} of the still stretches gravity"
         return head + (f"too few still orientations: the {int(self.quasi_static.sum())} quasi-static ones "
                        f"(|f| within {QUASI_STATIC_TOL:.0%} of {self.gravity:.3f} m/s²) gravity")
+
+
+def hand_steps(session: Session) -> list:
+    """The steps whose attitude only the unit's own sensors know: kind ``free``, or a turn declared ``by_hand``
+    (an imported hand-made turn: its table angle is a guess, never a measurement)."""
+    return [st for st in session.steps if st.kind == "free" or bool(st.extra.get("by_hand"))]
 
 
 def free_points(session: Session, block_s: float = BLOCK_S, reject_spikes: bool = True) -> FreeData:
@@ -95,9 +104,9 @@ def free_points(session: Session, block_s: float = BLOCK_S, reject_spikes: bool 
     ``reject_spikes``, magnetometer spikes in the still stretches too (:mod:`mag_spikes`). Raises AnalysisError when
     there is no free step or no block with samples.
     """
-    steps = session.steps_of_kind("free")
+    steps = hand_steps(session)
     if not steps:
-        raise AnalysisError(f"{session.name}: no free step")
+        raise AnalysisError(f"{session.name}: no free step (nor a step turned by hand)")
     if not session.has_mag:
         raise AnalysisError(f"{session.name}: samples have no magnetometer columns mx, my, mz")
     frames = [(st, session.step_samples(st.index)) for st in steps]
@@ -147,7 +156,8 @@ def free_points(session: Session, block_s: float = BLOCK_S, reject_spikes: bool 
     grav = float(np.median(still_norms)) if len(still_norms) else float(np.median(norm))
     quasi = np.abs(norm / grav - 1.0) < QUASI_STATIC_TOL
     return FreeData(np.array(mags), acc, np.array(ts), np.array(labels), quasi, np.array(blk_still), grav, n_still, still_s,
-                    tuple(st.index for st, _ in frames), np.concatenate(spike_t) if spike_t else np.zeros(0))
+                    tuple(st.index for st, _ in frames), np.concatenate(spike_t) if spike_t else np.zeros(0),
+                    all(st.kind == "free" for st, _ in frames))
 
 
 @dataclass(frozen=True)
