@@ -8,7 +8,8 @@ fits: :func:`workbench.jobs.noise_options_known`); figures need their result. Wi
 workers (:mod:`workbench.workers`) the recordings start at once, longest planned first; an
 analysis runs, as soon as its noise terms are known, in the worker that holds its session;
 figures are saved last, a procedure with several split over the workers. Every step depends
-only on its arguments, so the files are the same as in order in one process.
+only on its arguments, so the files are the same as in order in one process. On a real rig
+(one turntable) everything runs in order in this process.
 """
 
 from __future__ import annotations
@@ -61,6 +62,8 @@ def run_plan(plan, progress_for: Callable[[str], Callable | None] | None = None,
     """Record, analyse and draw every procedure of ``plan``; ``workers`` processes (default: usable CPUs)."""
     n = len(plan.procs)
     workers = usable_workers(n) if workers is None else max(1, min(int(workers), n))
+    if plan.cfg.driver != "sim":  # one real turntable: its recordings follow one another
+        workers = 1
     return _in_order(plan, progress_for) if workers == 1 else _in_parallel(plan, progress_for, workers)
 
 

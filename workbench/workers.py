@@ -22,6 +22,7 @@ import os
 import pickle
 import queue
 import resource
+import sys
 import time
 from collections.abc import Callable
 from typing import Any
@@ -57,8 +58,31 @@ def _portable(exc: BaseException) -> BaseException:
         return WorkbenchError(f"{type(exc).__name__}: {' '.join(str(exc).split())}")
 
 
+def fresh_std_streams() -> None:
+    """Give a forked process its own ``sys.stdout``/``sys.stderr`` objects on the same files.
+
+    A thread of the parent (a progress bar refreshing itself) may have held a stream's lock at
+    the fork; the child's copy of that lock would never be released.
+    """
+    for name, fd in (("stdout", 1), ("stderr", 2)):
+        old = getattr(sys, name)
+        try:
+            setattr(sys, name, open(fd, "w", buffering=1, encoding=getattr(old, "encoding", None) or "utf-8",
+                                    errors=getattr(old, "errors", None) or "backslashreplace", closefd=False))
+        except (OSError, ValueError):  # no such file descriptor: keep the object
+            pass
+
+
 def _serve(wid: int, inbox, outbox, handler: Handler) -> None:
-    """A worker's loop: run each job of its inbox, answer in the outbox, stop at None."""
+    """A worker's loop: run each job of its inbox, answer in the outbox, stop at None (or Ctrl-C)."""
+    fresh_std_streams()
+    try:
+        _jobs(wid, inbox, outbox, handler)
+    except KeyboardInterrupt:  # Ctrl-C while waiting for a job: the parent stops too
+        return
+
+
+def _jobs(wid: int, inbox, outbox, handler: Handler) -> None:
     memory: dict = {}
     while True:
         job = inbox.get()

@@ -30,8 +30,9 @@ def _save(figures: Mapping, fig_dir: Path, names: Iterable[str]) -> None:
 
 
 def _child(figures: Mapping, fig_dir: Path, names: list[str], conn) -> None:
-    from workbench.workers import _portable
+    from workbench.workers import _portable, fresh_std_streams
 
+    fresh_std_streams()
     try:
         _save(figures, fig_dir, names)
     except BaseException as exc:  # noqa: BLE001 - sent to the parent, which raises it as one line
