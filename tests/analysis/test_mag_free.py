@@ -94,7 +94,7 @@ def test_free_points_need_a_free_step():
 
 def test_split_half_scale_widens_only_what_disagrees():
     from workbench.analysis.mag_fit import MagFit
-    from workbench.analysis.mag_free import scaled_sigmas, split_half_scale
+    from workbench.analysis.mag_holdout import scaled_sigmas, split_half_scale
 
     def fit(bias):
         return MagFit("ellipsoid", np.asarray(bias, float), np.full(3, 0.1), np.eye(3), np.full((3, 3), 1e-3),

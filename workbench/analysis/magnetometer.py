@@ -36,7 +36,7 @@ from workbench.model import TriadModel
 from workbench.session import Session
 
 if TYPE_CHECKING:
-    from workbench.analysis.mag_free import FreeQuality
+    from workbench.analysis.mag_holdout import FreeQuality
 
 MIN_POINTS = {"2d": 6, "2d-minmax": 6, "sphere": 8, "ellipsoid": 15, "algebraic": 15, "dip": 15, "attitude": 10}
 STATIC_KINDS = ("static", "soak", "ramp")

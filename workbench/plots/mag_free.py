@@ -1,6 +1,6 @@
 """Figure of a hand-held magnetometer fit: field norm and field-to-gravity angle against time.
 
-Drawn from :class:`workbench.analysis.mag_free.FreeQuality` (its ``series``): the calibrated field
+Drawn from :class:`workbench.analysis.mag_holdout.FreeQuality` (its ``series``): the calibrated field
 norm (% from the fitted norm) and the angle between field and gravity (°) at every fitted point,
 under the chosen fit and under the plain algebraic ellipsoid, with the held-out split marked.
 """
@@ -10,7 +10,7 @@ from __future__ import annotations
 import matplotlib.pyplot as plt
 import numpy as np
 
-from workbench.analysis.mag_free import FreeQuality
+from workbench.analysis.mag_holdout import FreeQuality
 
 
 def plot_free_quality(q: FreeQuality) -> plt.Figure:

@@ -1,0 +1,170 @@
+"""Truth-free quality of a hand-held magnetometer fit, and what the halves of a record say about its sigmas.
+
+- :func:`holdout_quality`: the figures printed with every hand-held fit (:class:`FreeQuality`): the RMS
+  of the calibrated field norm (% of the fitted norm, over all points) and the spread (standard
+  deviation, rad) of the field-to-gravity angle (over the points whose specific force is gravity), in
+  sample and held out (fitted on the first half in time, judged on the second), for the fit and for a
+  plain 10-coefficient algebraic ellipsoid on the same points.
+- :func:`split_half_scale`, :func:`scaled_sigmas`: the fits of the two halves in time must agree within
+  their sigmas; per group (hard iron, soft iron, field norm) the rms z of their difference scales the
+  full fit's sigmas when it exceeds 1 (model misfit: a hand-held record's residuals depend on where the
+  hand took the unit).
+
+Used by :mod:`workbench.analysis.mag_free`. Public: :class:`FitFigures`, :class:`FreeQuality`,
+:func:`point_values`, :func:`figures_of`, :func:`halves`, :func:`held_out`, :func:`holdout_quality`,
+:data:`GROUPS`, :func:`split_half_scale`, :func:`scaled_sigmas`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from workbench.analysis import mag_ellipsoid
+from workbench.analysis.mag_attitude import down_direction
+from workbench.analysis.mag_fit import MagFit
+from workbench.errors import AnalysisError
+
+
+@dataclass(frozen=True)
+class FitFigures:
+    """Truth-free figures of one calibration on a set of points: field-norm RMS (fraction of the norm)
+    and the standard deviation of the field-to-gravity angle (rad), in sample and held out."""
+
+    norm_rms: float
+    angle_spread: float
+    norm_rms_held_out: float
+    angle_spread_held_out: float
+
+    def to_dict(self) -> dict:
+        return {"field_norm_rms_pct": 100 * self.norm_rms, "angle_spread_deg": float(np.degrees(self.angle_spread)),
+                "field_norm_rms_pct_held_out": 100 * self.norm_rms_held_out,
+                "angle_spread_deg_held_out": float(np.degrees(self.angle_spread_held_out))}
+
+
+@dataclass(frozen=True)
+class FreeQuality:
+    """The figures of the fit and of the plain algebraic ellipsoid on the same points (``baseline``,
+    None if it fails), the number of points and where the halves split (``split_t`` s)."""
+
+    fit: FitFigures
+    baseline: FitFigures | None
+    n_points: int
+    split_t: float
+    notes: tuple[str, ...] = ()
+    series: dict | None = None  # per point: t s; norm (fraction) and angle rad (NaN without gravity) per fit
+
+    def to_dict(self) -> dict:
+        return {"fit": self.fit.to_dict(), "plain_ellipsoid": None if self.baseline is None else self.baseline.to_dict(),
+                "n_points": self.n_points, "split_t_s": self.split_t, "notes": list(self.notes)}
+
+    def lines(self, method: str) -> list[str]:
+        """Lines for people (%, °)."""
+        def row(name, f):
+            return (f"{name}: field-norm RMS {100 * f.norm_rms:.2f} % (held out {100 * f.norm_rms_held_out:.2f} %), "
+                    f"field-to-gravity angle spread {np.degrees(f.angle_spread):.2f}° "
+                    f"(held out {np.degrees(f.angle_spread_held_out):.2f}°)")
+        out = [f"hand-held quality, no truth needed ({self.n_points} points fitted; held out = fitted before "
+               f"t = {self.split_t:.1f} s, judged after):", "  " + row(method, self.fit)]
+        out.append("  " + (row("plain 10-coefficient ellipsoid", self.baseline) if self.baseline is not None
+                           else "plain 10-coefficient ellipsoid: " + "; ".join(self.notes)))
+        return out
+
+
+def point_values(fit: MagFit, mag: np.ndarray, down: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per point: calibrated field norm relative to the fitted norm minus 1 (N,), and the angle (N,) rad
+    between the calibrated field and the down direction, for raw points ``mag`` (N, 3) µT and unit down
+    directions ``down`` (N, 3), IMU frame."""
+    h = fit.compensate(mag)
+    hn = np.linalg.norm(h, axis=1)
+    return hn / fit.field_norm_ut - 1.0, np.arccos(np.clip(np.sum(h * down, axis=1) / hn, -1.0, 1.0))
+
+
+def figures_of(fit: MagFit, mag: np.ndarray, down: np.ndarray, gravity_ok: np.ndarray | None = None) -> tuple[float, float]:
+    """(field-norm RMS as a fraction of the fitted norm over all points, std of the field-to-gravity angle rad
+    over the points whose specific force is gravity, ``gravity_ok`` (N,) bool, default all) of ``fit`` on raw
+    points ``mag`` (N, 3) µT with unit down directions ``down`` (N, 3), IMU frame."""
+    norm, angle = point_values(fit, mag, down)
+    ok = np.ones(len(mag), bool) if gravity_ok is None else gravity_ok
+    return float(np.sqrt(np.mean(norm**2))), float(np.std(angle[ok])) if ok.any() else float("nan")
+
+
+Fitter = Callable[[np.ndarray], MagFit]  # fits the points selected by a (N,) bool mask
+
+
+def halves(t: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """(median time s, first-half mask, second-half mask) of point times ``t`` (N,) s."""
+    split = float(np.median(t))
+    return split, t <= split, t > split
+
+
+def held_out(fitter: Fitter, mag: np.ndarray, down: np.ndarray, gravity_ok: np.ndarray, train: np.ndarray,
+             test: np.ndarray) -> tuple[float, float]:
+    """:func:`figures_of` on the ``test`` points of a fit to the ``train`` points (masks (N,))."""
+    return figures_of(fitter(train), mag[test], down[test], gravity_ok[test])
+
+
+def holdout_quality(fitter: Fitter, fit: MagFit, mag: np.ndarray, accel: np.ndarray, t: np.ndarray,
+                    gravity_ok: np.ndarray) -> FreeQuality:
+    """Figures of ``fit`` (fitted on all points) and of ``fitter`` refitted on the first half in time and
+    judged on the second; the same for the plain algebraic ellipsoid (see the module docstring).
+    ``mag`` (N, 3) µT, ``accel`` (N, 3) m/s^2, ``t`` (N,) s of the points, ``gravity_ok`` (N,) bool the
+    points whose specific force is gravity (the angle is judged on them)."""
+    down = down_direction(accel)
+    split, first, second = halves(t)
+    notes: list[str] = []
+    series: dict = {"t": t}
+
+    def figures(name: str, fit_all: MagFit, one: Fitter) -> FitFigures:
+        a, b = figures_of(fit_all, mag, down, gravity_ok)
+        c, d = held_out(one, mag, down, gravity_ok, first, second)
+        norm, angle = point_values(fit_all, mag, down)
+        series[f"{name}_norm"], series[f"{name}_angle"] = norm, np.where(gravity_ok, angle, np.nan)
+        return FitFigures(a, b, c, d)
+
+    ours = figures("fit", fit, fitter)
+    try:
+        base = figures("plain", mag_ellipsoid.fit_algebraic_plain(mag),
+                       lambda sel: mag_ellipsoid.fit_algebraic_plain(mag[sel]))
+    except AnalysisError as exc:
+        base = None
+        notes.append(f"failed ({exc})")
+    return FreeQuality(ours, base, len(mag), split, tuple(notes), series)
+
+
+
+GROUPS = ("hard iron", "soft iron", "field norm")
+
+
+def _coefficients(fit: MagFit) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Per group of :data:`GROUPS`: the fit's coefficients (µT or dimensionless) and their sigmas."""
+    return {"hard iron": (fit.bias, fit.bias_sigma), "soft iron": (fit.soft_iron.ravel(), fit.soft_iron_sigma.ravel()),
+            "field norm": (np.array([fit.field_norm_ut]), np.array([fit.field_norm_sigma]))}
+
+
+def split_half_scale(a: MagFit, b: MagFit) -> dict[str, tuple[float, float]]:
+    """Per group of :data:`GROUPS`: (scale, rms z) from the fits of the two halves of a record, with
+    ``z = (c_a - c_b) / sqrt(s_a^2 + s_b^2)`` over the coefficients both observe and ``scale = max(1, rms z)``:
+    what the full fit's sigmas of that group need for the halves to agree (a correct model and white
+    residuals give rms z ~ 1 and leave them alone)."""
+    out = {}
+    for g, ((ca, sa), (cb, sb)) in zip(GROUPS, zip(_coefficients(a).values(), _coefficients(b).values())):
+        ok = np.isfinite(sa) & np.isfinite(sb) & (np.hypot(sa, sb) > 0)
+        if ok.any():
+            rms = float(np.sqrt(np.mean(((ca - cb)[ok] / np.hypot(sa, sb)[ok]) ** 2)))
+            out[g] = (max(1.0, rms), rms)
+    return out
+
+
+def scaled_sigmas(fit: MagFit, k: dict[str, float]) -> MagFit:
+    """``fit`` with the sigmas of each group of :data:`GROUPS` multiplied by ``k[group]`` (1 if absent); dip,
+    declination and alignment take the soft iron's."""
+    ks = k.get("soft iron", 1.0)
+
+    def mul(x):
+        return None if x is None else x * ks
+    return replace(fit, bias_sigma=fit.bias_sigma * k.get("hard iron", 1.0), soft_iron_sigma=fit.soft_iron_sigma * ks,
+                   field_norm_sigma=fit.field_norm_sigma * k.get("field norm", 1.0), dip_sigma=mul(fit.dip_sigma),
+                   declination_sigma=mul(fit.declination_sigma), alignment_sigma=mul(fit.alignment_sigma))
