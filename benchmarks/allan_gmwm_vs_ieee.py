@@ -10,7 +10,7 @@ log(estimate / truth) as a ratio (exp), the share of records whose 95 % interval
 truth, and how many records gave a value.
 
     python benchmarks/allan_gmwm_vs_ieee.py [--seeds 100] [--hours 1] [--grades industrial_mems,hg1700]
-        [--model wn+2gm+rw] [--bootstrap 30]
+        [--model auto|wn+2gm+rw|...] [--bootstrap 30]
 """
 
 from __future__ import annotations
@@ -27,6 +27,13 @@ from workbench.grades import load_spec
 TERMS = ("white", "bias_instability", "rrw")
 
 
+def _model(model: str, noise) -> str:
+    """``auto``: wn+2gm+rw, plus qn when the grade quantizes its output."""
+    if model != "auto":
+        return model
+    return "wn+2gm+rw" + ("+qn" if float(np.max(noise.quantization)) > 0 else "")
+
+
 def run(grade: str, seeds: int, hours: float, model: str, bootstrap: int) -> dict:
     """{(method, term): [(ratio, covered), ...]} over ``seeds`` gyro records of ``grade``."""
     spec = load_spec(grade)
@@ -36,7 +43,7 @@ def run(grade: str, seeds: int, hours: float, model: str, bootstrap: int) -> dic
     for seed in range(1, seeds + 1):
         y = simulate(ts.noise, rate, hours, 1000 * seed + 7)[:, :1]
         ieee = analyze_record(y, rate, ["gx"], None).fits[0].terms
-        gm = fit_gmwm(y[:, 0], rate, model, "gx", bootstrap=bootstrap, seed=seed)
+        gm = fit_gmwm(y[:, 0], rate, _model(model, ts.noise), "gx", bootstrap=bootstrap, seed=seed)
         for term in TERMS:
             t_true = float(truth[term][0])
             if t_true <= 0:
@@ -56,7 +63,7 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=100)
     ap.add_argument("--hours", type=float, default=1.0)
     ap.add_argument("--grades", default="industrial_mems,quasi_tactical,hg1700")
-    ap.add_argument("--model", default="wn+2gm+rw")
+    ap.add_argument("--model", default="auto", help="GMWM model, or auto (wn+2gm+rw, +qn for a quantizing grade)")
     ap.add_argument("--bootstrap", type=int, default=30)
     a = ap.parse_args()
     print(f"gyro, {a.seeds} seeds x {a.hours:g} h per grade; GMWM model {a.model}, bootstrap {a.bootstrap}")
