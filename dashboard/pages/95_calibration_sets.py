@@ -181,8 +181,9 @@ with tab_show:
                 continue
             st.download_button(f"{fmt} ({mod.SUFFIX})", out.text, file_name=f"{serial}_v{version}{mod.SUFFIX}",
                                help=getattr(mod, "DESCRIPTION", fmt), key=f"cal.dl.{fmt}")
-            if out.dropped:
-                st.caption("Not expressible: " + "; ".join(out.dropped))
+            if out.dropped:  # what the format cannot hold, folded: the buttons stay in view
+                with st.expander(f"{len(out.dropped)} not expressible in {fmt}"):
+                    st.caption("; ".join(out.dropped))
     with st.expander("Canonical JSON"):
         st.json(json.loads(calset.to_json()))
 
