@@ -9,6 +9,11 @@ sigmas z is N(0, 1): rms z ~ 1 (target <= 1.5 on real recordings, issue 21 item 
 
     python benchmarks/split_half_z.py SESSION_DIR --procedure ferraris
     python benchmarks/split_half_z.py runs/imucal --procedure ferraris -o position_sigma_deg=auto
+    python benchmarks/split_half_z.py runs/unmoved-* --procedure multiposition --across
+    python benchmarks/split_half_z.py runs/tilt-sphere --procedure magnetometer --sim 100
+
+``--across``: a check that no scaling from a split can make circular: every recording fitted
+whole, z between recordings of the same board for each coefficient both observe.
 
 Prints one row per coefficient (value in lab units, both halves, z) and the rms per triad and
 over all.
@@ -19,6 +24,7 @@ from __future__ import annotations
 import argparse
 import json
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
@@ -96,13 +102,88 @@ def split_half_z(session, proc, options: dict, shared=()) -> list[tuple]:
     return sorted(rows)
 
 
+def across_z(sessions: list, proc, options: dict) -> list[tuple]:
+    """Rows (name, unit, value_A, value_B, sigma_A, sigma_B, z, pair) between whole recordings of one unit.
+
+    Independent of any scaling of the sigmas by a split: every recording is fitted whole, and a
+    coefficient observed by two recordings gives ``z = (x_A - x_B) / sqrt(s_A² + s_B²)`` (same
+    board, different recordings: a change of the unit between them also shows, as it should).
+    """
+    from itertools import combinations
+
+    from workbench import units
+    from workbench.errors import WorkbenchError
+
+    fits = {}
+    for s in sessions:
+        try:
+            fits[s.name] = {(t, f, i): (v, sg) for t, f, i, v, sg in coefficients(proc.analyze(s, **options).calibration)}
+        except WorkbenchError as exc:
+            print(f"{s.name}: not fitted ({str(exc)[:100]})")
+    rows = []
+    for (na, ca), (nb, cb) in combinations(fits.items(), 2):
+        for key in sorted(ca.keys() & cb.keys()):
+            triad, field, idx = key
+            (va, sa), (vb, sb) = ca[key], cb[key]
+            q = "field_norm" if field == "field_norm" else units.field_quantity(field, idx)
+            rows.append((f"{triad} {field}{list(idx) if idx else ''}", units.unit_of(triad, q), va, vb, sa, sb,
+                         (va - vb) / np.hypot(sa, sb), f"{Path(na).name} vs {Path(nb).name}"))
+    return rows
+
+
+def sim_coverage(seeds: int = 100) -> None:
+    """Coverage of the 1-sigma intervals against the virtual lab's truth (noise correlated in time).
+
+    The two experiments of ``tests/analysis/test_mag_fit_sigma.py`` (hand-held tumble, Gauss-Markov
+    noise over ~40 points: hard iron) and ``tests/analysis/test_position_check_noise.py`` (six
+    10-s positions of an industrial MEMS unit, Gauss-Markov drift on the accelerometer: its bias),
+    with the white-noise covariance beside the one the workbench reports.
+    """
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from tests.analysis import test_mag_fit_sigma as mag
+    from workbench.analysis import mag_fit
+
+    def band(n: int) -> str:
+        return f"binomial 3σ band {0.683 - 3 * np.sqrt(0.683 * 0.317 / n):.2f}-{0.683 + 3 * np.sqrt(0.683 * 0.317 / n):.2f}"
+
+    def zs(cov_fn=None) -> dict[str, list[float]]:
+        saved = mag_fit._covariance
+        if cov_fn is not None:
+            mag_fit._covariance = cov_fn
+        out: dict[str, list[float]] = {"hard iron": [], "soft iron diagonal": [], "soft iron off-diagonal": []}
+        try:
+            for seed in range(seeds):
+                fit = mag.fit_ellipsoid(mag._points(seed), field_norm_ut=48.0)
+                out["hard iron"] += list((fit.bias - mag.HARD) / fit.bias_sigma)
+                z = (fit.soft_iron - mag.SOFT) / fit.soft_iron_sigma
+                out["soft iron diagonal"] += list(np.diag(z))
+                out["soft iron off-diagonal"] += list(z[np.triu_indices(3, 1)])
+        finally:
+            mag_fit._covariance = saved
+        return out
+
+    honest, white = zs(), zs(lambda jac, r: mag_fit.lsq_covariance(jac, r.ravel()))
+    print(f"sim: magnetometer tumble, Gauss-Markov noise over ~40 points, {seeds} seeds (truth known)")
+    for key in honest:
+        h = np.array([z for z in honest[key] if np.isfinite(z)])
+        w = np.array([z for z in white[key] if np.isfinite(z)])
+        print(f"  {key:24s} {len(h)} z: coverage {np.mean(np.abs(h) < 1):.2f}, rms z {np.sqrt(np.mean(h ** 2)):.2f} "
+              f"(white-noise covariance: {np.mean(np.abs(w) < 1):.2f}, rms z {np.sqrt(np.mean(w ** 2)):.2f}; "
+              f"{band(len(h))})")
+
+
 def main(argv: list[str] | None = None) -> int:
     from workbench.registry import procedure
     from workbench.session import load_session
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("session")
+    ap.add_argument("session", nargs="+", help="one session (split in halves), or several with --across")
     ap.add_argument("--procedure", required=True)
+    ap.add_argument("--across", action="store_true", help="z between whole recordings of one unit instead")
+    ap.add_argument("--sim", type=int, default=0, metavar="SEEDS",
+                    help="also print the coverage against the virtual lab's truth over SEEDS tumbles")
     ap.add_argument("-o", "--option", action="append", default=[], help="analysis option key=value (JSON value)")
     ap.add_argument("--json", action="store_true", help="print the rows as JSON")
     args = ap.parse_args(argv)
@@ -114,7 +195,21 @@ def main(argv: list[str] | None = None) -> int:
         except json.JSONDecodeError:
             options[k] = v
     proc = procedure(args.procedure)
-    session = load_session(args.session)
+    if args.sim:
+        sim_coverage(args.sim)
+    if args.across:
+        from workbench import units
+
+        rows = across_z([load_session(p) for p in args.session], proc, options)
+        for name, unit, va, vb, sa, sb, z, pair in rows:
+            f, lab = units.factor(unit), units.label(unit)
+            print(f"{name:28s} {va / f:11.4g} ± {sa / f:<9.2g} {vb / f:11.4g} ± {sb / f:<9.2g} {z:+7.2f}  {lab}  {pair}")
+        z = np.array([r[6] for r in rows])
+        if len(z):
+            print(f"across recordings: {len(z)} coefficient pairs, rms z {np.sqrt(np.mean(z ** 2)):.2f}, "
+                  f"max |z| {np.abs(z).max():.2f}")
+        return 0
+    session = load_session(args.session[0])
     rows = split_half_z(session, proc, options, SHARED.get(proc.NAME, ()))
     if args.json:
         print(json.dumps([dict(zip(("name", "unit", "a", "b", "sigma_a", "sigma_b", "z"), r)) for r in rows]))

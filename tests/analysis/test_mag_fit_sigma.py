@@ -37,7 +37,7 @@ def _points(seed: int) -> np.ndarray:
 def _coverage(seeds: range) -> float:
     z = []
     for s in seeds:
-        fit = fit_ellipsoid(_points(s), field_norm_ut=48.0 * np.cbrt(np.linalg.det(SOFT)))
+        fit = fit_ellipsoid(_points(s), field_norm_ut=48.0)
         z += list((fit.bias - HARD) / fit.bias_sigma)
     return float(np.mean(np.abs(z) < 1))
 
