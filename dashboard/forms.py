@@ -22,6 +22,7 @@ from dashboard.ui import format_duration, guarded, lab_label
 from workbench import registry
 
 UNITS_DIR = jobs.REPO / "fixtures" / "units"
+DEFAULT_GRADE, DEFAULT_PROCEDURE = "industrial_mems", "multiposition"  # preselected: the README's unit, a first run
 
 
 def unit_grades(directory: Path | None = None) -> dict[str, Path]:
@@ -35,7 +36,8 @@ def grade_picker(label: str = "Unit grade", key: str = "grade") -> Path | None:
     if not grades:
         st.info(f"No unit grade fixtures in {UNITS_DIR}.")
         return None
-    name = st.selectbox(label, list(grades), key=key)
+    names = list(grades)
+    name = st.selectbox(label, names, key=key, index=names.index(DEFAULT_GRADE) if DEFAULT_GRADE in names else 0)
     return grades[name]
 
 
@@ -58,7 +60,8 @@ def procedure_picker(label: str = "Procedure", key: str = "procedure") -> Module
         st.info("No procedures are installed yet (procedures/*.py).")
         return None
     names = sorted(procs)
-    name = st.selectbox(label, names, key=key, format_func=lambda n: f"{n} — {getattr(procs[n], 'TITLE', n)}")
+    name = st.selectbox(label, names, key=key, format_func=lambda n: f"{n} — {getattr(procs[n], 'TITLE', n)}",
+                        index=names.index(DEFAULT_PROCEDURE) if DEFAULT_PROCEDURE in names else 0)
     return procs[name]
 
 
