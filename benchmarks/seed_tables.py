@@ -72,12 +72,36 @@ def lns_tables(seed: int = 1) -> dict:
     return r
 
 
-def covariance_table(latitude_deg: float = 40.0) -> dict:
-    """Paper 001 table 4-1 (CEP after 1 h) by covariance analysis, and the eq. 49 fit."""
+def eq49_fit(ceps: dict[str, list[float]], label: str) -> dict:
+    """The eq. 49 fit ``dp = a0 + a1 exp(a2 Δψ)`` of CEPs per grade over :data:`RATES_DPS`, printed beside table 4-2."""
+    from scipy.optimize import curve_fit
+
+    def model(x, a0, a1, a2):
+        return a0 + a1 * np.exp(a2 * x)
+
+    dpsi = 3600.0 * np.asarray(RATES_DPS)
+    fits = {}
+    print(f"eq. 49 fit dp = a0 + a1 exp(a2 Δψ) ({label}):")
+    for grade, values in ceps.items():
+        try:
+            p, _ = curve_fit(model, dpsi, values, p0=(values[-1], values[0], -0.003), maxfev=20000)
+        except RuntimeError:
+            print(f"  {grade:20s} no fit")
+            continue
+        fits[grade] = p.tolist()
+        s = SEED_4_2[grade]
+        print(f"  {grade:20s} seed a0 {s[0]:8.0f} m  a1 {s[1]:8.0f} m  a2 {s[2]:+.4f} /°   measured a0 {p[0]:8.1f} m  "
+              f"a1 {p[1]:8.0f} m  a2 {p[2]:+.4f} /°")
+        print(f"  {'':20s} seed curve at our Δψ: " + ", ".join(f"{v:.0f}" for v in model(dpsi, *s)) + " m")
+    return fits
+
+
+def covariance_table(latitude_deg: float = 40.0, states: int = 20) -> dict:
+    """Paper 001 table 4-1 (CEP after 1 h) by covariance analysis of a ``states`` filter, and the eq. 49 fit."""
     from scipy.optimize import curve_fit
 
     from workbench.grades import load_spec
-    from workbench.nav.land_ins import covariance_analysis, grade_errors
+    from workbench.nav.land_ins import LandInsConfig, covariance_analysis, grade_errors
     from workbench.sim.roads import constant_rate_drive
     from workbench.sim.trajectory import generate, leg_from_dict
 
@@ -89,11 +113,12 @@ def covariance_table(latitude_deg: float = 40.0) -> dict:
         for rate in RATES_DPS:
             legs = [leg_from_dict(d) for d in constant_rate_drive(rate)]
             tr = generate(legs, 1.0, np.radians(latitude_deg), np.radians(33.0), 900.0)
-            ceps.append(covariance_analysis(tr, ge)["cep_m"])
+            ceps.append(covariance_analysis(tr, ge, LandInsConfig(states=states))["cep_m"])
         out[grade] = ceps
     t_cpu, t_wall = time.process_time() - t_cpu, time.perf_counter() - t_wall
     dpsi = 3600.0 * np.asarray(RATES_DPS)
-    print(f"\npaper 001 table 4-1: CEP after 1 h at 20 m/s (covariance analysis, 16 cases: {t_cpu:.1f} s CPU, "
+    print(f"\npaper 001 table 4-1: CEP after 1 h at 20 m/s (covariance analysis, {states} states, 16 cases: "
+          f"{t_cpu:.1f} s CPU, "
           f"{t_wall:.1f} s wall; target 60 s)")
     print(f"{'traj':>4s} {'rate °/s':>9s} {'Δψ °':>6s} | {'tactical seed':>13s} {'measured':>9s} | "
           f"{'nav seed':>9s} {'measured':>9s}")
@@ -102,21 +127,9 @@ def covariance_table(latitude_deg: float = 40.0) -> dict:
               f"{out['tactical_low_noise'][i]:9.0f} | {SEED_4_1['navigation_grade'][i]:9.0f} "
               f"{out['navigation_grade'][i]:9.0f}")
 
-    def model(x, a0, a1, a2):
-        return a0 + a1 * np.exp(a2 * x)
-
-    fits = {}
-    print("eq. 49 fit dp = a0 + a1 exp(a2 Δψ):")
-    for grade, ceps in out.items():
-        p, _ = curve_fit(model, dpsi, ceps, p0=(ceps[-1], ceps[0], -0.003), maxfev=20000)
-        fits[grade] = p.tolist()
-        s = SEED_4_2[grade]
-        seed_curve = model(dpsi, *s)
-        print(f"  {grade:20s} seed a0 {s[0]:8.0f} m  a1 {s[1]:8.0f} m  a2 {s[2]:+.4f} /°   measured a0 {p[0]:8.1f} m  "
-              f"a1 {p[1]:8.0f} m  a2 {p[2]:+.4f} /°")
-        print(f"  {'':20s} seed curve at our Δψ: " + ", ".join(f"{v:.0f}" for v in seed_curve) + " m")
+    fits = eq49_fit(out, f"covariance, {states} states")
     return {"rates_dps": list(RATES_DPS), "heading_change_deg": dpsi.tolist(), "cep_m": out, "fit": fits,
-            "cpu_s": t_cpu, "wall_s": t_wall}
+            "states": states, "cpu_s": t_cpu, "wall_s": t_wall}
 
 
 def filter_speed(seed: int = 1) -> float:
@@ -143,22 +156,50 @@ def filter_speed(seed: int = 1) -> float:
     return cpu
 
 
-def monte_carlo(runs: int, scheduler: str, cruise_s: float, out_dir: Path) -> dict:
-    """Sampled Monte Carlo (``workbench.fleet.land_ins_mc``) of table 4-1 on Dask, resumable in ``out_dir``."""
+def monte_carlo(runs: int, scheduler: str, cruise_s: float, out_dir: Path, states: int = 20,
+                deadline: float | None = None) -> dict:
+    """Sampled Monte Carlo (``workbench.fleet.land_ins_mc``) of table 4-1 on Dask, resumable in ``out_dir``.
+
+    The runs go run index first (run 0 of every case, then run 1, ...), so an interrupted or
+    ``deadline``-stopped (``time.time()``) Monte Carlo has about as many runs of every case.
+    """
     from rich.progress import Progress
 
     from workbench.fleet.batch import cluster_client
     from workbench.fleet.land_ins_mc import McCase, cep_table, monte_carlo as run_mc
 
-    cases = [McCase(g, r, k, cruise_s) for g in SEED_4_1 for r in RATES_DPS for k in range(runs)]
-    with cluster_client(scheduler) as client, Progress() as bar:
-        task = bar.add_task("Monte Carlo", total=len(cases))
-        out = run_mc(cases, out_dir, client, lambda d, n: bar.update(task, completed=d, total=n))
+    cases = [McCase(g, r, k, cruise_s, True, states) for k in range(runs) for g in SEED_4_1 for r in RATES_DPS]
+    if deadline is None:
+        with cluster_client(scheduler) as client, Progress() as bar:
+            task = bar.add_task("Monte Carlo", total=len(cases))
+            run_mc(cases, out_dir, client, lambda d, n: bar.update(task, completed=d, total=n))
+    else:  # one round of runs at a time until the deadline
+        for k in range(runs):
+            if time.time() > deadline:
+                print(f"deadline reached before run {k}", flush=True)
+                break
+            with cluster_client(scheduler) as client:
+                run_mc([c for c in cases if c.run == k], out_dir, client)
+            print(f"run {k} of every case done ({time.strftime('%H:%M:%S')})", flush=True)
+    out = [json.loads(c.path(out_dir).read_text()) for c in cases if c.path(out_dir).exists()]
     table = cep_table(out)
-    print(f"\nsampled Monte Carlo, {runs} run(s) per case, cruise {cruise_s:g} s (results in {out_dir}):")
-    for key, v in table.items():
-        print(f"  {key:28s} CEP {v['cep_m']:9.1f} m ({v['runs']} runs)")
-    return table
+    print(f"\nsampled Monte Carlo, up to {runs} run(s) per case, {states}-state filter, cruise {cruise_s:g} s "
+          f"(results in {out_dir}); CEP = median final horizontal error:")
+    print(f"{'traj':>4s} {'rate °/s':>9s} | {'tactical seed':>13s} {'MC CEP':>9s} {'σ':>8s} {'runs':>4s} | "
+          f"{'nav seed':>9s} {'MC CEP':>9s} {'σ':>8s} {'runs':>4s}")
+    ceps: dict[str, list[float]] = {g: [] for g in SEED_4_1}
+    suffix = "" if states == 20 else f" s{states}"
+    for i, rate in enumerate(RATES_DPS):
+        cells = []
+        for g in SEED_4_1:
+            v = table.get(f"{g} {rate:g}{suffix}")
+            ceps[g].append(v["cep_m"] if v else np.nan)
+            cells.append(f"{SEED_4_1[g][i]:9.0f} {v['cep_m']:9.1f} {v['sigma_m']:8.1f} {v['runs']:4d}" if v
+                         else f"{SEED_4_1[g][i]:9.0f} {'-':>9s} {'-':>8s} {0:4d}")
+        print(f"{i + 1:4d} {rate:9.4f} | {cells[0]:>37s} | {cells[1]}")
+    complete = {g: v for g, v in ceps.items() if np.all(np.isfinite(v))}
+    fits = eq49_fit(complete, f"sampled Monte Carlo, {states} states") if complete else {}
+    return {"table": table, "fit": fits}
 
 
 def main() -> None:
@@ -170,8 +211,12 @@ def main() -> None:
     ap.add_argument("--scheduler", default="local", help="Dask scheduler: local (127.0.0.1) or tcp://HOST:PORT")
     ap.add_argument("--cruise-s", type=float, default=3600.0, help="cruise of the Monte Carlo drives, s")
     ap.add_argument("--mc-dir", type=Path, default=Path("/tmp/seed_tables_mc"), help="resumable Monte Carlo results")
+    ap.add_argument("--states", type=int, default=20, help="filter states: 20 (paper 001), 29 or 38 (+ scale factor "
+                    "and misalignment of the gyro / of both triads)")
+    ap.add_argument("--skip-covariance", action="store_true", help="leave out the covariance table")
+    ap.add_argument("--until", default=None, help="stop the Monte Carlo after the round running at HH:MM UTC")
     args = ap.parse_args()
-    doc = {"table_4_1": covariance_table()}
+    doc = {} if args.skip_covariance else {"table_4_1": covariance_table(states=args.states)}
     if not args.skip_lns:
         lns = lns_tables()
         doc["tables_2_8_2_9"] = {m: {v: lns[m][v]["error_pct"] for v in ("sf_state", "no_sf_state")}
@@ -179,7 +224,15 @@ def main() -> None:
     if args.filter_speed:
         doc["filter_cpu_s"] = filter_speed()
     if args.monte_carlo:
-        doc["monte_carlo"] = monte_carlo(args.monte_carlo, args.scheduler, args.cruise_s, args.mc_dir)
+        deadline = None
+        if args.until:
+            import calendar
+
+            hh, mm = map(int, args.until.split(":"))
+            now = time.gmtime()
+            deadline = calendar.timegm((now.tm_year, now.tm_mon, now.tm_mday, hh, mm, 0))
+        doc["monte_carlo"] = monte_carlo(args.monte_carlo, args.scheduler, args.cruise_s, args.mc_dir, args.states,
+                                         deadline)
     if args.out:
         args.out.write_text(json.dumps(doc, indent=1))
 

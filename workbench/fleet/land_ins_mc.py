@@ -29,17 +29,20 @@ import numpy as np
 @dataclass(frozen=True)
 class McCase:
     """One Monte Carlo run: ``grade`` name, ``rate_dps`` heading rate, ``run`` index (the seed),
-    ``cruise_s`` and ``precalibration`` of the drive."""
+    ``cruise_s`` and ``precalibration`` of the drive, ``states`` of the filter (20: paper 001's;
+    29 / 38 with the scale-factor and misalignment states, :mod:`workbench.nav.land_ins_model`)."""
 
     grade: str
     rate_dps: float
     run: int
     cruise_s: float = 3600.0
     precalibration: bool = True
+    states: int = 20
 
     def path(self, out_dir: Path) -> Path:
-        """Where the outcome of this run is kept."""
-        return Path(out_dir) / self.grade / f"{self.rate_dps:g}" / f"run_{self.run:04d}.json"
+        """Where the outcome of this run is kept (a filter of other than 20 states in its own folder)."""
+        top = Path(out_dir) if self.states == 20 else Path(out_dir) / f"states_{self.states}"
+        return top / self.grade / f"{self.rate_dps:g}" / f"run_{self.run:04d}.json"
 
 
 def run_one(case: McCase) -> dict:
@@ -47,7 +50,7 @@ def run_one(case: McCase) -> dict:
     from workbench.earth import radii
     from workbench.grades import draw_unit, load_spec
     from workbench.nav.compensate import imu_samples
-    from workbench.nav.land_ins import grade_errors, run_land_ins
+    from workbench.nav.land_ins import LandInsConfig, grade_errors, run_land_ins
     from workbench.session import Site
     from workbench.sim.roads import constant_rate_drive
     from workbench.sim.vehicle import drive, drive_config
@@ -59,7 +62,8 @@ def run_one(case: McCase) -> dict:
     session, truth = drive(drive_config(legs, site, 0.0), unit, 1000 + case.run)
     tr = truth["trajectory"]
     res = run_land_ins(imu_samples(session.samples, session.sample_rate_hz), site.latitude,
-                       float(np.radians(site.longitude_deg)), site.height_m, 0.0, grade_errors(spec))
+                       float(np.radians(site.longitude_deg)), site.height_m, 0.0, grade_errors(spec),
+                       LandInsConfig(states=case.states))
     k = int(np.searchsorted(tr["t"].to_numpy(), res.t[-1]))
     k = min(k, len(tr) - 1)
     rm, rn = radii(tr["lat"].iloc[k])
@@ -67,7 +71,9 @@ def run_one(case: McCase) -> dict:
     de = (res.lon[-1] - tr["lon"].iloc[k]) * rn * np.cos(res.lat[-1])
     return {"case": asdict(case), "final_error_m": float(np.hypot(dn, de)),
             "final_sigma_m": float(np.hypot(res.sigma[-1, 0], res.sigma[-1, 1])),
-            "distance_m": float(tr["distance"].iloc[k])}
+            "distance_m": float(tr["distance"].iloc[k]),
+            "nhc_rejected": float(np.mean(res.weights_min[res.mode == "nhc"] < 1.0)) if np.any(res.mode == "nhc")
+            else 0.0}
 
 
 def _save(case: McCase, out_dir: Path, outcome: dict) -> None:
@@ -109,9 +115,14 @@ def monte_carlo(cases: Iterable[McCase], out_dir: str | Path, client=None,
 
 
 def cep_table(outcomes: list[dict]) -> dict:
-    """CEP (median final horizontal error, m) and the number of runs per (grade, rate)."""
+    """CEP (median final horizontal error, m), median filter sigma (m) and the number of runs per
+    (grade, rate, states); keys ``"<grade> <rate>"`` (20 states) or ``"<grade> <rate> s<states>"``."""
     groups: dict = {}
     for o in outcomes:
-        key = (o["case"]["grade"], o["case"]["rate_dps"])
-        groups.setdefault(key, []).append(o["final_error_m"])
-    return {f"{g} {r:g}": {"cep_m": float(np.median(v)), "runs": len(v)} for (g, r), v in sorted(groups.items())}
+        c = o["case"]
+        key = (c["grade"], c["rate_dps"], int(c.get("states", 20)))
+        groups.setdefault(key, []).append((o["final_error_m"], o["final_sigma_m"]))
+    return {f"{g} {r:g}" + ("" if n == 20 else f" s{n}"): {"cep_m": float(np.median([e for e, _ in v])),
+                                                         "sigma_m": float(np.median([s for _, s in v])),
+                                                         "runs": len(v)}
+            for (g, r, n), v in sorted(groups.items())}

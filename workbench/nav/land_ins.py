@@ -1,5 +1,11 @@
 """Paper 001's land INS: 20-state error-state EKF with NHC, ZUPT and ZARUPT (shared/seeds/001_...).
 
+The states, the error dynamics and the NHC Jacobian are in :mod:`workbench.nav.land_ins_model`
+(re-exported here); ``states`` 29 / 38 add the gyro's / both triads' scale-factor and
+misalignment states (random constants, :func:`~workbench.nav.land_ins_model.scale_columns`), the
+"additional error states" of the paper's sec. 4.1: without them a unit's 1 mrad misalignment turns
+a 1 °/s heading rate into 3.6 °/h of bias-like error the 20 states cannot absorb.
+
 Error state (eq. 2, 7), NED: ``δx = [δr (N, E, D m), δv (m/s), δψ (rad), b_a (m/s², body),
 b_g (rad/s, body), δw (boresight pitch, yaw rad), δl (lever arm m, platform frame)]``. Position,
 velocity, attitude, boresight and lever arm are estimated minus true (``C_est = (I + [δψ×]) C``);
@@ -46,156 +52,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from workbench.earth import EARTH_RATE, normal_gravity, radii
+from workbench.nav.land_ins_model import (  # noqa: F401  (re-exported: the model's public names)
+    A_, BA, BG, BW, LA, N_STATES, P_, SA, SG, STATE_COUNTS, V_, GradeErrors, LandInsConfig, discretise,
+    error_dynamics, grade_errors, nhc_jacobian, scale_columns)
 from workbench.nav.strapdown import sequential_update, skew
-
-N_STATES = 20
-P_, V_, A_, BA, BG, BW, LA = (slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), slice(12, 15),
-                               slice(15, 17), slice(17, 20))
-
-
-@dataclass(frozen=True)
-class GradeErrors:
-    """1-sigma sensor errors and noise densities the filter models (SI, per axis).
-
-    ``accel_bias`` m/s², ``gyro_bias`` rad/s (random constants, initial sigma); ``accel_white``
-    m/s/√s, ``gyro_white`` rad/√s; ``accel_bias_rw`` m/s²/√s, ``gyro_bias_rw`` rad/s/√s.
-    """
-
-    accel_bias: np.ndarray
-    gyro_bias: np.ndarray
-    accel_white: np.ndarray
-    gyro_white: np.ndarray
-    accel_bias_rw: np.ndarray
-    gyro_bias_rw: np.ndarray
-
-
-def grade_errors(spec, bias_correlation_s: float = 3600.0) -> GradeErrors:
-    """The errors a grade (``workbench.grades.SensorSpec``) tells the filter: table 3-1's bias and
-    noise; the bias random walk ``sqrt(rrw² + B² / τ)`` from the grade's rate random walk and bias
-    instability (as ``workbench.nav.compensate.process_noise``)."""
-    g, a = spec.specs["gyro"], spec.specs["accel"]
-
-    def rw(ts):
-        return np.sqrt(ts.noise.rrw ** 2 + ts.noise.bias_instability ** 2 / bias_correlation_s)
-
-    return GradeErrors(np.asarray(a.bias, float), np.asarray(g.bias, float), a.noise.white, g.noise.white,
-                       rw(a), rw(g))
-
-
-@dataclass(frozen=True)
-class LandInsConfig:
-    """Filter settings (SI unless named).
-
-    ``update_s`` filter step; measurement sigmas ``nhc_sigma`` m/s, ``zupt_sigma`` m/s,
-    ``zarupt_sigma_floor`` rad/s (added to ARW / √window); ``zarupt_window_s`` (eq. 40);
-    validity thresholds ``xi_gyro`` rad/s (eq. 42), ``xi_speed`` (eq. 43, 2 = 95 %), ``xi_acc`` m/s²
-    (eq. 45), ``nhc_max_rate`` rad/s; gain scaling ``c0``, ``c1`` (eq. 47; None = off); initial
-    sigmas ``pos0`` m, ``vel0`` m/s, ``tilt0``, ``yaw0`` rad, ``boresight0`` rad, ``lever0`` m;
-    ``boresight_rw`` rad/√s, ``lever_rw`` m/√s; ``states`` 15 or 20.
-    """
-
-    update_s: float = 1.0
-    nhc_sigma: float = 0.05
-    zupt_sigma: float = 0.01
-    zarupt_sigma_floor: float = 1e-7
-    zarupt_window_s: float = 1.0
-    xi_gyro: float = np.radians(0.05)
-    xi_speed: float = 2.0
-    xi_acc: float = 0.05
-    nhc_max_rate: float = np.radians(30.0)
-    c0: float | None = 1.0
-    c1: float = 6.0
-    pos0: float = 1.0
-    vel0: float = 0.01
-    tilt0: float = np.radians(0.01)
-    yaw0: float = np.radians(5.0)
-    boresight0: float = np.radians(0.5)
-    lever0: float = 0.2
-    boresight_rw: float = 1e-7
-    lever_rw: float = 1e-5
-    states: int = 20
-
-
-def _skew_n(v: np.ndarray) -> np.ndarray:
-    """Cross-product matrices (..., 3, 3) of vectors (..., 3)."""
-    k = np.zeros(v.shape[:-1] + (3, 3))
-    k[..., 0, 1], k[..., 0, 2], k[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
-    k[..., 1, 0], k[..., 2, 0], k[..., 2, 1] = v[..., 2], -v[..., 1], v[..., 0]
-    return k
-
-
-def error_dynamics(c_bn: np.ndarray, f_n: np.ndarray, v_n: np.ndarray, lat, h,
-                   grade: GradeErrors, cfg: LandInsConfig) -> tuple[np.ndarray, np.ndarray]:
-    """Continuous ``F`` and ``G Q Gᵀ`` (…, 20, 20) at points of the trajectory (module docstring).
-
-    ``c_bn`` (…, 3, 3), ``f_n``, ``v_n`` (…, 3), ``lat`` rad and ``h`` m (…): one point or a batch.
-    """
-    lat, h = np.asarray(lat, float), np.asarray(h, float)
-    shape = lat.shape
-    rm, rn = radii(lat)
-    g = normal_gravity(lat, h)
-    zero = np.zeros(shape)
-    w_ie = EARTH_RATE * np.stack([np.cos(lat), zero, -np.sin(lat)], -1)
-    w_en = np.stack([v_n[..., 1] / (rn + h), -v_n[..., 0] / (rm + h), -v_n[..., 1] * np.tan(lat) / (rn + h)], -1)
-    F = np.zeros(shape + (N_STATES, N_STATES))
-    F[..., P_, V_] = np.eye(3)
-    F[..., V_, A_] = -_skew_n(f_n)
-    F[..., V_, BA] = c_bn
-    F[..., V_, V_] = -_skew_n(2 * w_ie + w_en)
-    F[..., 5, 2] = 2 * g / np.sqrt(rm * rn)  # gravity falls with height; the Schuler loop is via ∂ω_en/∂v
-    F[..., A_, A_] = -_skew_n(w_ie + w_en)
-    F[..., 6, 4] = -1 / (rn + h)  # -∂ω_en/∂v
-    F[..., 7, 3] = 1 / (rm + h)
-    F[..., 8, 4] = np.tan(lat) / (rn + h)
-    F[..., 6, 0] = EARTH_RATE * np.sin(lat) / (rm + h)  # -∂ω_ie/∂r_N
-    F[..., 8, 0] = EARTH_RATE * np.cos(lat) / (rm + h)
-    F[..., A_, BG] = c_bn
-    qd = np.zeros(N_STATES)
-    qd[V_] = grade.accel_white ** 2
-    qd[A_] = grade.gyro_white ** 2
-    qd[BA] = grade.accel_bias_rw ** 2
-    qd[BG] = grade.gyro_bias_rw ** 2
-    qd[BW] = cfg.boresight_rw ** 2
-    qd[LA] = cfg.lever_rw ** 2
-    gqg = np.zeros(shape + (N_STATES, N_STATES))
-    gqg[..., V_, V_] = (c_bn * qd[V_]) @ np.swapaxes(c_bn, -1, -2)  # C diag(q) Cᵀ
-    gqg[..., A_, A_] = (c_bn * qd[A_]) @ np.swapaxes(c_bn, -1, -2)
-    idx = np.arange(9, N_STATES)
-    gqg[..., idx, idx] = qd[9:]
-    return F, gqg
-
-
-def discretise(F: np.ndarray, gqg: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """Second-order transition ``Φ = I + F dt + (F dt)²/2`` and ``Q_k = (Φ GQGᵀ Φᵀ + GQGᵀ) dt / 2`` (eq. 11);
-    one (20, 20) pair or a batch (…, 20, 20)."""
-    fd = F * dt
-    phi = np.eye(F.shape[-1]) + fd + 0.5 * fd @ fd
-    return phi, 0.5 * (phi @ gqg @ np.swapaxes(phi, -1, -2) + gqg) * dt
-
-
-def nhc_jacobian(c_bn: np.ndarray, c_bp: np.ndarray, v_n: np.ndarray, w_nb_b: np.ndarray,
-                 lever_p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Predicted platform velocity rows 2-3 (2,) and their Jacobian (2, 20) w.r.t. the error state.
-
-    ``v^p = C_b^p C_n^b v^n - C_b^p [ω_nb^b×] C_p^b l^p`` (eq. 20, l resolved in the platform frame).
-    With this module's convention (estimates = truth + errors, ``C_est = (I + [δψ×]) C``,
-    ``C_b^p est = (I + [δw×]) C_b^p`` with δw = (0, pitch, yaw)), the first-order terms are
-    ``∂/∂δv = C_b^p C_n^b``, ``∂/∂δψ = C_b^p C_n^b [v^n×]`` (C_n^b est = C_n^b (I - [δψ×])),
-    ``∂/∂δw = -[v^p×] - C_b^p [ω_nb^b×] C_p^b [l^p×]`` (columns pitch, yaw; the second term, the
-    boresight turning the lever-arm velocity, is second order and dropped in the paper),
-    ``∂/∂δl = -C_b^p [ω_nb^b×] C_p^b`` — eq. 28-29 in this sign convention (the paper's A* holds
-    the pitch/yaw columns of ``[v^p×]``). Checked against finite differences in the tests.
-    """
-    c_nb = c_bn.T
-    m = c_bp @ c_nb
-    v_p = m @ v_n - c_bp @ skew(w_nb_b) @ c_bp.T @ lever_p
-    H = np.zeros((3, N_STATES))
-    H[:, V_] = m
-    H[:, A_] = m @ skew(v_n)
-    lever_term = c_bp @ skew(w_nb_b) @ c_bp.T
-    H[:, BW] = (-skew(v_p) - lever_term @ skew(lever_p))[:, 1:]
-    H[:, LA] = -lever_term
-    return v_p[1:], H[1:]
 
 
 def cep(p_nn: np.ndarray, draws: int = 200_000, seed: int = 0) -> float:
@@ -226,48 +86,93 @@ def covariance_analysis(trajectory, grade: GradeErrors, cfg: LandInsConfig = Lan
     k = max(1, int(round(cfg.update_s / dt_tr)))
     idx = np.arange(0, len(tr.t), k)
     dt = k * dt_tr
-    P = np.diag(_initial_sigma(grade, cfg) ** 2)
+    nst = _states(cfg)
+    P = _initial_covariance(grade, cfg, float(tr.heading[0]))[:nst, :nst]
     w_ie_all = EARTH_RATE * np.stack([np.cos(tr.lat), 0 * tr.lat, -np.sin(tr.lat)], 1)
     f_n = np.einsum("nij,nj->ni", tr.c_bn, tr.f_b)
     still = _static_mask(tr.speed) if static is None else static
-    sig = np.empty((len(idx), N_STATES))
+    sig = np.full((len(idx), N_STATES), np.nan)
     c_bp = np.eye(3)
     zr = np.zeros(3)
     eye3 = np.eye(3)
     r_zarupt = (grade.gyro_white / np.sqrt(cfg.zarupt_window_s) + cfg.zarupt_sigma_floor) ** 2
-    F_all, gqg_all = error_dynamics(tr.c_bn[idx], f_n[idx], tr.v_ned[idx], tr.lat[idx], tr.h[idx], grade, cfg)
-    phi_all, q_all = discretise(F_all, gqg_all, dt)
+    F_all, gqg_all = error_dynamics(tr.c_bn[idx], f_n[idx], tr.v_ned[idx], tr.lat[idx], tr.h[idx], grade, cfg,
+                                    tr.omega_ib_b[idx], tr.f_b[idx])
+    phi_all, q_all = discretise(F_all[:, :nst, :nst], gqg_all[:, :nst, :nst], dt)
+    del F_all, gqg_all
     for j, i in enumerate(idx):
         if j > 0:
             P = phi_all[j] @ P @ phi_all[j].T + q_all[j]
         if still[i]:
-            H = np.zeros((6, N_STATES))
-            H[:3, V_] = eye3
-            H[3:, A_] = -skew(w_ie_all[i])  # ZARUPT: rotated gyro mean minus Earth rate (eq. 38-39)
-            H[3:, BG] = tr.c_bn[i]
+            H = _zupt_zarupt_rows(tr.c_bn[i], w_ie_all[i], tr.omega_ib_b[i], nst)
             r = np.concatenate([np.full(3, cfg.zupt_sigma ** 2), r_zarupt])
         else:
             w_nb_b = tr.omega_ib_b[i] - tr.c_bn[i].T @ (w_ie_all[i])
             _, H = nhc_jacobian(tr.c_bn[i], c_bp, tr.v_ned[i], w_nb_b, zr)
+            H = H[:, :nst]
             r = np.full(2, cfg.nhc_sigma ** 2)
         P, _, _ = sequential_update(P, H, np.zeros(len(r)), r)
-        sig[j] = np.sqrt(np.diag(P))
+        sig[j, :nst] = np.sqrt(np.diag(P))
     moving = ~still
     dpsi = np.abs(np.diff(np.unwrap(tr.heading)))[moving[1:]].sum()
     return {"t": tr.t[idx], "sigma": sig, "p_end": P, "cep_m": cep(P[:2, :2]),
             "heading_change_deg": float(np.degrees(dpsi))}
 
 
+def _states(cfg: LandInsConfig) -> int:
+    """The filter's state count, checked."""
+    if cfg.states not in STATE_COUNTS:
+        raise ValueError(f"land INS: states={cfg.states} is not one of {', '.join(map(str, STATE_COUNTS))}")
+    return int(cfg.states)
+
+
+def _zupt_zarupt_rows(c_bn: np.ndarray, w_ie: np.ndarray, omega_b: np.ndarray, nst: int) -> np.ndarray:
+    """H (6, nst) of ZUPT (eq. 31-34) and ZARUPT (eq. 35-40; rotated gyro mean minus the Earth rate),
+    the latter with the gyro scale-factor states when the filter has them."""
+    H = np.zeros((6, N_STATES))
+    H[:3, V_] = np.eye(3)
+    H[3:, A_] = -skew(w_ie)
+    H[3:, BG] = c_bn
+    H[3:, SG] = c_bn @ scale_columns(omega_b)
+    return H[:, :nst]
+
+
+def _initial_covariance(grade: GradeErrors, cfg: LandInsConfig, heading0: float = 0.0) -> np.ndarray:
+    """Initial covariance (38, 38) after coarse levelling at heading ``heading0`` (rad).
+
+    Levelling makes the measured specific force vertical, so the tilt absorbs the horizontal
+    accelerometer bias: with ``δv̇ = -[f×] δψ + C b_a`` and ``f = (0, 0, -g)``, ``δψ_N = -b_E / g`` and
+    ``δψ_E = b_N / g`` (``b^n = C b_a``). The tilt variance gets ``(C b)^2 / g^2`` besides ``tilt0^2``
+    and the tilt-bias covariance is carried: without it the zero-velocity updates of the alignment
+    make the filter believe the horizontal bias known to ``g tilt0`` (0.17 mg for 0.01°), and the
+    bias a turn uncovers drives the velocity beyond the stop detector's 2 sigma (eq. 43).
+    """
+    sig = _initial_sigma(grade, cfg)
+    P = np.diag(sig ** 2)
+    g = 9.80665
+    c, s_ = np.cos(heading0), np.sin(heading0)
+    rows = np.array([[c, -s_, 0.0], [s_, c, 0.0]])  # N and E rows of a level C_b^n
+    var_b = grade.accel_bias ** 2
+    cov_n, cov_e = -(rows[1] * var_b) / g, (rows[0] * var_b) / g  # cov(δψ_N, b), cov(δψ_E, b)
+    P[6, BA], P[7, BA] = cov_n, cov_e
+    P[BA, 6], P[BA, 7] = cov_n, cov_e
+    P[6, 6] = cfg.tilt0 ** 2 + float(rows[1] ** 2 @ var_b) / g ** 2
+    P[7, 7] = cfg.tilt0 ** 2 + float(rows[0] ** 2 @ var_b) / g ** 2
+    return P
+
+
 def _initial_sigma(grade: GradeErrors, cfg: LandInsConfig) -> np.ndarray:
-    """Initial 1-sigma of the 20 states."""
+    """Initial 1-sigma of the 38 states (a filter of fewer uses the leading ones)."""
     s = np.empty(N_STATES)
     s[P_] = cfg.pos0
     s[V_] = cfg.vel0
-    s[A_] = [cfg.tilt0, cfg.tilt0, cfg.yaw0]
+    s[A_] = [cfg.tilt0, cfg.tilt0, cfg.yaw0]  # the levelling's share is added by _initial_covariance
     s[BA] = grade.accel_bias
     s[BG] = grade.gyro_bias
     s[BW] = cfg.boresight0
     s[LA] = cfg.lever0
+    s[SG] = np.concatenate([grade.gyro_scale, np.repeat(grade.gyro_misalignment, 2)])
+    s[SA] = np.concatenate([grade.accel_scale, np.repeat(grade.accel_misalignment, 2)])
     return np.maximum(s, 1e-12)
 
 
@@ -276,7 +181,8 @@ class LandInsResult:
     """Filter output at each step (M,): ``t`` s, ``lat``, ``lon`` rad, ``h`` m, ``v_ned`` (M, 3),
     ``rph`` (M, 3) rad, ``sigma`` (M, 20), ``mode`` (M,) 'zupt' | 'nhc' | 'none', ``weights_min`` (M,)
     the smallest M-estimator weight of the step, ``gyro_bias`` / ``accel_bias`` (M, 3),
-    ``boresight`` (M, 2) rad, ``lever_arm`` (M, 3) m."""
+    ``boresight`` (M, 2) rad, ``lever_arm`` (M, 3) m; ``gyro_scale`` / ``accel_scale`` (M, 9) the
+    scale-factor and misalignment estimates (:func:`scale_columns` order; zeros without those states)."""
 
     t: np.ndarray
     lat: np.ndarray
@@ -292,6 +198,8 @@ class LandInsResult:
     boresight: np.ndarray
     lever_arm: np.ndarray
     notes: list = field(default_factory=list)
+    gyro_scale: np.ndarray | None = None
+    accel_scale: np.ndarray | None = None
 
 
 def _c_bp(boresight: np.ndarray) -> np.ndarray:
@@ -325,11 +233,13 @@ def run_land_ins(samples, lat0: float, lon0: float, h0: float, heading0: float, 
     lat, lon, h, v = float(lat0), float(lon0), float(h0), np.zeros(3)
     b_a, b_g = np.zeros(3), np.zeros(3)
     bore, lever = np.zeros(2), np.zeros(3)
-    nst = cfg.states
-    P = np.diag(_initial_sigma(grade, cfg)[:nst] ** 2)
+    s_g, s_a = np.zeros(9), np.zeros(9)  # scale-factor and misalignment estimates
+    nst = _states(cfg)
+    P = _initial_covariance(grade, cfg, heading0)[:nst, :nst]
     step = max(1, int(round(cfg.update_s / dt)))
     m = (n - 1) // step + 1
     out = {k: np.full((m, 3), np.nan) for k in ("pos", "v", "rph", "ba", "bg", "la")}
+    out.update({k: np.zeros((m, 9)) for k in ("sg", "sa")})
     sig = np.full((m, N_STATES), np.nan)
     bw_out = np.full((m, 2), np.nan)
     mode = np.empty(m, dtype=object)
@@ -341,19 +251,21 @@ def run_land_ins(samples, lat0: float, lon0: float, h0: float, heading0: float, 
         a = j * step
         if j > 0:
             sl = slice(a - step, a + 1)
-            gy, ac = samples.gyro[sl] - b_g, samples.accel[sl] - b_a
+            gy = (samples.gyro[sl] - b_g) @ (np.eye(3) - _matrix(s_g)).T
+            ac = (samples.accel[sl] - b_a) @ (np.eye(3) - _matrix(s_a)).T
             nav = mechanise(lat, lon, h, v, c, gy, ac, dt)
             c_prev = c
             lat, lon, h, v, c = float(nav.lat[-1]), float(nav.lon[-1]), float(nav.h[-1]), nav.v_ned[-1], nav.c_bn[-1]
             f_n = 0.5 * (c_prev + c) @ ac.mean(axis=0)
-            F, gqg = error_dynamics(c, f_n, v, lat, h, grade, cfg)
+            F, gqg = error_dynamics(c, f_n, v, lat, h, grade, cfg, gy.mean(axis=0), ac.mean(axis=0))
             phi, q = discretise(F[:nst, :nst], gqg[:nst, :nst], step * dt)
             P = phi @ P @ phi.T + q
             # validity (eq. 41-45)
             w_ie = EARTH_RATE * np.array([np.cos(lat), 0.0, -np.sin(lat)])
             gw = gy[-k_win:].mean(axis=0)
             gyro_static = np.linalg.norm(gw - c.T @ w_ie) <= cfg.xi_gyro
-            speed_static = np.linalg.norm(v) <= cfg.xi_speed * np.sqrt(P[3, 3] + P[4, 4] + P[5, 5])
+            speed_static = np.linalg.norm(v) <= max(cfg.xi_speed * np.sqrt(P[3, 3] + P[4, 4] + P[5, 5]),
+                                                    cfg.creep_speed)
             g_n = np.array([0.0, 0.0, float(normal_gravity(lat, h))])
             rm, rn = radii(lat)
             w_en = np.array([v[1] / (rn + h), -v[0] / (rm + h), -v[1] * np.tan(lat) / (rn + h)])
@@ -361,10 +273,7 @@ def run_land_ins(samples, lat0: float, lon0: float, h0: float, heading0: float, 
             acc_static = np.linalg.norm(a_n) <= cfg.xi_acc
             w_nb_b = gw - c.T @ (w_ie + w_en)
             if gyro_static and acc_static and speed_static:
-                H = np.zeros((6, nst))
-                H[:3, V_] = np.eye(3)
-                H[3:, A_] = -skew(w_ie)
-                H[3:, BG] = c
+                H = _zupt_zarupt_rows(c, w_ie, gw, nst)
                 z = np.concatenate([v, c @ gw - w_ie])  # predicted minus measured (0): H δx + noise
                 r = np.concatenate([np.full(3, cfg.zupt_sigma ** 2), r_zarupt])
                 mode[j] = "zupt"
@@ -392,6 +301,7 @@ def run_land_ins(samples, lat0: float, lon0: float, h0: float, heading0: float, 
                 c = expm_so3(-dx[6], -dx[7], -dx[8]) @ c
                 b_a, b_g = b_a + dx[BA], b_g + dx[BG]
                 bore, lever = bore - dx[BW], lever - dx[LA]
+                s_g, s_a = s_g + dx[SG], s_a + dx[SA]
         else:
             mode[j] = "start"
         out["pos"][j] = (lat, lon, h)
@@ -399,8 +309,15 @@ def run_land_ins(samples, lat0: float, lon0: float, h0: float, heading0: float, 
         out["rph"][j] = (np.arctan2(c[2, 1], c[2, 2]), -np.arcsin(np.clip(c[2, 0], -1.0, 1.0)),
                          np.arctan2(c[1, 0], c[0, 0]))
         out["ba"][j], out["bg"][j], out["la"][j] = b_a, b_g, lever
+        out["sg"][j], out["sa"][j] = s_g, s_a
         bw_out[j] = bore
         sig[j, :nst] = np.sqrt(np.diag(P))
     t = samples.t[np.arange(m) * step]
     return LandInsResult(t, out["pos"][:, 0], out["pos"][:, 1], out["pos"][:, 2], out["v"], out["rph"], sig,
-                         mode.astype(str), wmin, out["bg"], out["ba"], bw_out, out["la"])
+                         mode.astype(str), wmin, out["bg"], out["ba"], bw_out, out["la"],
+                         gyro_scale=out["sg"], accel_scale=out["sa"])
+
+
+def _matrix(s: np.ndarray) -> np.ndarray:
+    """The 3x3 scale-factor and misalignment matrix of the 9 states (:func:`scale_columns` order)."""
+    return np.array([[s[0], s[3], s[4]], [s[5], s[1], s[6]], [s[7], s[8], s[2]]])

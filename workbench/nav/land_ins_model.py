@@ -1,0 +1,211 @@
+"""Paper 001's land-INS error model: states, the error dynamics and the NHC Jacobian (shared/seeds/001_...).
+
+Error state, NED: ``δx = [δr (N, E, D m), δv (m/s), δψ (rad), b_a (m/s², body), b_g (rad/s, body),
+δw (boresight pitch, yaw rad), δl (lever arm m, platform frame), δs_g (9), δs_a (9)]``: the 15
+states of eq. 2, the boresight and lever arm of eq. 7 (20 states, the paper's filter), then the
+"additional error states" the paper adds as random constants for its azimuth analysis (sec. 4.1,
+ref. [18]): the gyro's and the accelerometer's scale factor (3) and misalignment (6) each,
+``δs = (s_x, s_y, s_z, m_xy, m_xz, m_yx, m_yz, m_zx, m_zy)`` with the residual error ``δM u`` of
+the compensated output ``(I - Ŝ)(y - b̂)`` (true minus estimated, like the biases). A filter of
+``states`` = 15, 20, 29 or 38 uses the leading block. Sign conventions and the equations are
+in :mod:`workbench.nav.land_ins`.
+
+Public: :data:`N_STATES`, the slices ``P_, V_, A_, BA, BG, BW, LA, SG, SA``, :class:`GradeErrors`,
+:func:`grade_errors`, :class:`LandInsConfig`, :func:`scale_columns`, :func:`error_dynamics`,
+:func:`discretise`, :func:`nhc_jacobian`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from workbench.earth import EARTH_RATE, normal_gravity, radii
+from workbench.nav.strapdown import skew
+
+N_STATES = 38
+STATE_COUNTS = (15, 20, 29, 38)
+P_, V_, A_, BA, BG, BW, LA = (slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), slice(12, 15),
+                               slice(15, 17), slice(17, 20))
+SG, SA = slice(20, 29), slice(29, 38)
+
+
+@dataclass(frozen=True)
+class GradeErrors:
+    """1-sigma sensor errors and noise densities the filter models (SI, per axis).
+
+    ``accel_bias`` m/s², ``gyro_bias`` rad/s (random constants, initial sigma); ``accel_white``
+    m/s/√s, ``gyro_white`` rad/√s; ``accel_bias_rw`` m/s²/√s, ``gyro_bias_rw`` rad/s/√s;
+    ``gyro_scale``, ``gyro_misalignment``, ``accel_scale``, ``accel_misalignment`` (dimensionless,
+    per axis: the diagonal of M and the off-diagonal terms of its row; random constants, the
+    initial sigma of the scale-factor states, 0 = not modelled).
+    """
+
+    accel_bias: np.ndarray
+    gyro_bias: np.ndarray
+    accel_white: np.ndarray
+    gyro_white: np.ndarray
+    accel_bias_rw: np.ndarray
+    gyro_bias_rw: np.ndarray
+    gyro_scale: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    gyro_misalignment: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    accel_scale: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    accel_misalignment: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+
+def grade_errors(spec, bias_correlation_s: float = 3600.0) -> GradeErrors:
+    """The errors a grade (``workbench.grades.SensorSpec``) tells the filter: table 3-1's bias,
+    scale factor, misalignment and noise; the bias random walk ``sqrt(rrw² + B² / τ)`` from the
+    grade's rate random walk and bias instability (as ``workbench.nav.compensate.process_noise``)."""
+    g, a = spec.specs["gyro"], spec.specs["accel"]
+
+    def rw(ts):
+        return np.sqrt(ts.noise.rrw ** 2 + ts.noise.bias_instability ** 2 / bias_correlation_s)
+
+    return GradeErrors(np.asarray(a.bias, float), np.asarray(g.bias, float), a.noise.white, g.noise.white,
+                       rw(a), rw(g), np.asarray(g.scale_factor, float), np.asarray(g.misalignment, float),
+                       np.asarray(a.scale_factor, float), np.asarray(a.misalignment, float))
+
+
+@dataclass(frozen=True)
+class LandInsConfig:
+    """Filter settings (SI unless named).
+
+    ``update_s`` filter step; measurement sigmas ``nhc_sigma`` m/s, ``zupt_sigma`` m/s,
+    ``zarupt_sigma_floor`` rad/s (added to ARW / √window); ``zarupt_window_s`` (eq. 40);
+    validity thresholds ``xi_gyro`` rad/s (eq. 42), ``xi_speed`` (eq. 43, 2 = 95 %), ``xi_acc`` m/s²
+    (eq. 45), ``creep_speed`` m/s (the speed test of eq. 43 passes below it: the gyro and acceleration
+    tests decide there, so a velocity error beyond 2 sigma at a stop does not lock ZUPT out for good),
+    ``nhc_max_rate`` rad/s; gain scaling ``c0``, ``c1`` (eq. 47; None = off); initial
+    sigmas ``pos0`` m, ``vel0`` m/s, ``tilt0``, ``yaw0`` rad, ``boresight0`` rad, ``lever0`` m (``tilt0``
+    is the levelling's own error; the accelerometer bias it absorbs, ``b_a / g``, is added: coarse
+    levelling makes the tilt and the horizontal bias cancel, a correlation the filter must carry or
+    it believes the bias known to ``tilt0 g`` and loses the stops after the first turn);
+    ``boresight_rw`` rad/√s, ``lever_rw`` m/√s; ``states`` 15, 20 (paper 001), 29 (+ the gyro scale
+    factor and misalignment) or 38 (+ the accelerometer's too).
+    """
+
+    update_s: float = 1.0
+    nhc_sigma: float = 0.05
+    zupt_sigma: float = 0.01
+    zarupt_sigma_floor: float = 1e-7
+    zarupt_window_s: float = 1.0
+    xi_gyro: float = np.radians(0.05)
+    xi_speed: float = 2.0
+    creep_speed: float = 0.5
+    xi_acc: float = 0.05
+    nhc_max_rate: float = np.radians(30.0)
+    c0: float | None = 1.0
+    c1: float = 6.0
+    pos0: float = 1.0
+    vel0: float = 0.01
+    tilt0: float = np.radians(0.01)
+    yaw0: float = np.radians(5.0)
+    boresight0: float = np.radians(0.5)
+    lever0: float = 0.2
+    boresight_rw: float = 1e-7
+    lever_rw: float = 1e-5
+    states: int = 20
+
+
+def _skew_n(v: np.ndarray) -> np.ndarray:
+    """Cross-product matrices (..., 3, 3) of vectors (..., 3)."""
+    k = np.zeros(v.shape[:-1] + (3, 3))
+    k[..., 0, 1], k[..., 0, 2], k[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
+    k[..., 1, 0], k[..., 2, 0], k[..., 2, 1] = v[..., 2], -v[..., 1], v[..., 0]
+    return k
+
+
+def scale_columns(u_b: np.ndarray) -> np.ndarray:
+    """W(u) (…, 3, 9): the error ``δM u`` of a triad's input ``u`` (…, 3) body frame for the states
+    ``(s_x, s_y, s_z, m_xy, m_xz, m_yx, m_yz, m_zx, m_zy)`` (diagonal, then each row's off-diagonal)."""
+    w = np.zeros(u_b.shape[:-1] + (3, 9))
+    for i in range(3):
+        w[..., i, i] = u_b[..., i]
+        others = [j for j in range(3) if j != i]
+        for k, j in enumerate(others):
+            w[..., i, 3 + 2 * i + k] = u_b[..., j]
+    return w
+
+
+def error_dynamics(c_bn: np.ndarray, f_n: np.ndarray, v_n: np.ndarray, lat, h,
+                   grade: GradeErrors, cfg: LandInsConfig, omega_b: np.ndarray | None = None,
+                   f_b: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Continuous ``F`` and ``G Q Gᵀ`` (…, 38, 38) at points of the trajectory (module docstring).
+
+    ``c_bn`` (…, 3, 3), ``f_n``, ``v_n`` (…, 3), ``lat`` rad and ``h`` m (…): one point or a batch.
+    ``omega_b`` (rad/s) and ``f_b`` (m/s²) (…, 3), the body-frame rate and specific force, feed the
+    scale-factor states (``δψ̇ += C_b^n W(ω) δs_g``, ``δv̇ += C_b^n W(f) δs_a``); without them those
+    columns are zero. A filter of ``cfg.states`` uses the leading block.
+    """
+    lat, h = np.asarray(lat, float), np.asarray(h, float)
+    shape = lat.shape
+    rm, rn = radii(lat)
+    g = normal_gravity(lat, h)
+    zero = np.zeros(shape)
+    w_ie = EARTH_RATE * np.stack([np.cos(lat), zero, -np.sin(lat)], -1)
+    w_en = np.stack([v_n[..., 1] / (rn + h), -v_n[..., 0] / (rm + h), -v_n[..., 1] * np.tan(lat) / (rn + h)], -1)
+    F = np.zeros(shape + (N_STATES, N_STATES))
+    F[..., P_, V_] = np.eye(3)
+    F[..., V_, A_] = -_skew_n(f_n)
+    F[..., V_, BA] = c_bn
+    F[..., V_, V_] = -_skew_n(2 * w_ie + w_en)
+    F[..., 5, 2] = 2 * g / np.sqrt(rm * rn)  # gravity falls with height; the Schuler loop is via ∂ω_en/∂v
+    F[..., A_, A_] = -_skew_n(w_ie + w_en)
+    F[..., 6, 4] = -1 / (rn + h)  # -∂ω_en/∂v
+    F[..., 7, 3] = 1 / (rm + h)
+    F[..., 8, 4] = np.tan(lat) / (rn + h)
+    F[..., 6, 0] = EARTH_RATE * np.sin(lat) / (rm + h)  # -∂ω_ie/∂r_N
+    F[..., 8, 0] = EARTH_RATE * np.cos(lat) / (rm + h)
+    F[..., A_, BG] = c_bn
+    if omega_b is not None:
+        F[..., A_, SG] = c_bn @ scale_columns(np.asarray(omega_b, float))
+    if f_b is not None:
+        F[..., V_, SA] = c_bn @ scale_columns(np.asarray(f_b, float))
+    qd = np.zeros(N_STATES)
+    qd[V_] = grade.accel_white ** 2
+    qd[A_] = grade.gyro_white ** 2
+    qd[BA] = grade.accel_bias_rw ** 2
+    qd[BG] = grade.gyro_bias_rw ** 2
+    qd[BW] = cfg.boresight_rw ** 2
+    qd[LA] = cfg.lever_rw ** 2
+    gqg = np.zeros(shape + (N_STATES, N_STATES))
+    gqg[..., V_, V_] = (c_bn * qd[V_]) @ np.swapaxes(c_bn, -1, -2)  # C diag(q) Cᵀ
+    gqg[..., A_, A_] = (c_bn * qd[A_]) @ np.swapaxes(c_bn, -1, -2)
+    idx = np.arange(9, 20)  # the scale-factor states are random constants (no process noise)
+    gqg[..., idx, idx] = qd[9:20]
+    return F, gqg
+
+
+def discretise(F: np.ndarray, gqg: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Second-order transition ``Φ = I + F dt + (F dt)²/2`` and ``Q_k = (Φ GQGᵀ Φᵀ + GQGᵀ) dt / 2`` (eq. 11);
+    one (20, 20) pair or a batch (…, 20, 20)."""
+    fd = F * dt
+    phi = np.eye(F.shape[-1]) + fd + 0.5 * fd @ fd
+    return phi, 0.5 * (phi @ gqg @ np.swapaxes(phi, -1, -2) + gqg) * dt
+
+
+def nhc_jacobian(c_bn: np.ndarray, c_bp: np.ndarray, v_n: np.ndarray, w_nb_b: np.ndarray,
+                 lever_p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Predicted platform velocity rows 2-3 (2,) and their Jacobian (2, 20) w.r.t. the error state.
+
+    ``v^p = C_b^p C_n^b v^n - C_b^p [ω_nb^b×] C_p^b l^p`` (eq. 20, l resolved in the platform frame).
+    With this module's convention (estimates = truth + errors, ``C_est = (I + [δψ×]) C``,
+    ``C_b^p est = (I + [δw×]) C_b^p`` with δw = (0, pitch, yaw)), the first-order terms are
+    ``∂/∂δv = C_b^p C_n^b``, ``∂/∂δψ = C_b^p C_n^b [v^n×]`` (C_n^b est = C_n^b (I - [δψ×])),
+    ``∂/∂δw = -[v^p×] - C_b^p [ω_nb^b×] C_p^b [l^p×]`` (columns pitch, yaw; the second term, the
+    boresight turning the lever-arm velocity, is second order and dropped in the paper),
+    ``∂/∂δl = -C_b^p [ω_nb^b×] C_p^b`` — eq. 28-29 in this sign convention (the paper's A* holds
+    the pitch/yaw columns of ``[v^p×]``). Checked against finite differences in the tests.
+    """
+    c_nb = c_bn.T
+    m = c_bp @ c_nb
+    v_p = m @ v_n - c_bp @ skew(w_nb_b) @ c_bp.T @ lever_p
+    H = np.zeros((3, N_STATES))
+    H[:, V_] = m
+    H[:, A_] = m @ skew(v_n)
+    lever_term = c_bp @ skew(w_nb_b) @ c_bp.T
+    H[:, BW] = (-skew(v_p) - lever_term @ skew(lever_p))[:, 1:]
+    H[:, LA] = -lever_term
+    return v_p[1:], H[1:]
