@@ -58,7 +58,12 @@ OPTIONS = (
     Option("c0", "analysis", "float", 1.0, "M-estimator c0 (eq. 47)", gt=0),
     Option("c1", "analysis", "float", 6.0, "M-estimator c1 (eq. 47)", gt=0),
     Option("gain_scaling", "analysis", "bool", True, "M-estimator gain scaling (eq. 46-47)"),
-    Option("states", "analysis", "int", 20, "15 (no boresight / lever arm) or 20", choices=(15, 20)),
+    Option("states", "analysis", "int", 20, "15 (no boresight / lever arm), 20 (paper 001), 29 (+ gyro scale factor "
+           "and misalignment) or 38 (+ the accelerometer's)", choices=(15, 20, 29, 38)),
+    Option("raw_scale_prior_ppm", "analysis", "float", 1000.0, "scale-factor prior of the raw run (29 / 38 states)",
+           unit="ppm", gt=0),
+    Option("raw_misalignment_prior_mrad", "analysis", "float", 1.0, "misalignment prior of the raw run "
+           "(29 / 38 states)", unit="mrad", gt=0),
     Option("raw_gyro_bias_prior_deg_h", "analysis", "float", 20.0, "gyro bias prior of the raw run",
            unit="deg/h", gt=0),
     Option("raw_accel_bias_prior_mg", "analysis", "float", 5.0, "accelerometer bias prior of the raw run",
@@ -105,7 +110,15 @@ def _grade(cal: CalibrationSet, calibrated: bool, noise, o) -> GradeErrors:
         bg = np.where(np.isfinite(sig["gyro"]) & (sig["gyro"] > 0), 2 * sig["gyro"], o.si("raw_gyro_bias_prior_deg_h"))
     else:
         ba, bg = np.full(3, o.si("raw_accel_bias_prior_mg")), np.full(3, o.si("raw_gyro_bias_prior_deg_h"))
-    return GradeErrors(ba, bg, noise.accel_white, noise.gyro_white, noise.accel_bias_rw, noise.gyro_bias_rw)
+    scale, mis = {}, {}
+    for t in ("gyro", "accel"):  # the scale-factor states' priors: 2 x the set's sigmas, else the raw priors
+        sm = cal.triads[t].sigma_of("scale_misalignment") if calibrated else np.full((3, 3), np.nan)
+        off = np.where(np.eye(3, dtype=bool), np.nan, sm)
+        scale[t] = np.where(np.isfinite(np.diag(sm)), 2 * np.diag(sm), o.si("raw_scale_prior_ppm"))
+        worst = np.nanmax(np.where(np.isfinite(off), off, -np.inf), axis=1)
+        mis[t] = np.where(np.isfinite(worst) & (worst > 0), 2 * worst, o.si("raw_misalignment_prior_mrad"))
+    return GradeErrors(ba, bg, noise.accel_white, noise.gyro_white, noise.accel_bias_rw, noise.gyro_bias_rw,
+                       scale["gyro"], mis["gyro"], scale["accel"], mis["accel"])
 
 
 def analyze(session: Session, calibration: CalibrationSet | None = None, **options) -> ProcedureResult:
