@@ -12,6 +12,7 @@ import importlib
 import pkgutil
 from dataclasses import dataclass, field
 from functools import lru_cache
+from pathlib import Path
 from types import ModuleType
 
 from workbench.errors import ExportError, ProcedureError
@@ -55,10 +56,53 @@ def procedure(name: str) -> ModuleType:
     return procs[name]
 
 
+_UNKNOWN = object()
+
+
+def _constants(path: str | None, names: tuple[str, ...] = ("TRIADS", "CAMPAIGN_ORDER")) -> dict:
+    """The literal top-level values of ``names`` in the module source at ``path`` (read, not imported).
+
+    A name whose value is not a literal, or a file that cannot be read or parsed, gives nothing
+    for it (the module is then imported to find out).
+    """
+    import ast
+
+    try:
+        tree = ast.parse(Path(path).read_text(encoding="utf-8"))
+    except (OSError, TypeError, SyntaxError, ValueError):
+        return {}
+    out = {}
+    for node in tree.body:
+        targets = node.targets if isinstance(node, ast.Assign) else [node.target] if isinstance(node, ast.AnnAssign) else []
+        for target in targets:
+            if isinstance(target, ast.Name) and target.id in names and getattr(node, "value", None) is not None:
+                try:
+                    out[target.id] = ast.literal_eval(node.value)
+                except ValueError:
+                    out[target.id] = _UNKNOWN
+    return {k: v for k, v in out.items() if v is not _UNKNOWN}
+
+
 def campaign_procedures(triads: set[str]) -> list[ModuleType]:
-    """Procedures of the campaign that apply to a unit with ``triads``, in campaign order."""
-    procs = [m for m in procedures().values() if getattr(m, "CAMPAIGN_ORDER", None) is not None
-             and set(m.TRIADS) <= triads]
+    """Procedures of the campaign that apply to a unit with ``triads``, in campaign order.
+
+    Only those are imported: a module whose source declares ``CAMPAIGN_ORDER = None`` or
+    ``TRIADS`` the unit does not have (literal values, read with :mod:`ast`) is left alone.
+    """
+    pkg = importlib.import_module("procedures")
+    procs = []
+    for info in pkgutil.iter_modules(pkg.__path__):
+        if info.name.startswith("_"):
+            continue
+        spec = info.module_finder.find_spec(info.name, None)
+        declared = _constants(getattr(spec, "origin", None))
+        if ("CAMPAIGN_ORDER" in declared and declared["CAMPAIGN_ORDER"] is None) or \
+                ("TRIADS" in declared and not set(declared["TRIADS"]) <= triads):
+            continue
+        m = importlib.import_module(f"procedures.{info.name}")
+        if hasattr(m, "NAME") and hasattr(m, "analyze") and getattr(m, "CAMPAIGN_ORDER", None) is not None \
+                and set(m.TRIADS) <= triads:
+            procs.append(m)
     return sorted(procs, key=lambda m: m.CAMPAIGN_ORDER)
 
 

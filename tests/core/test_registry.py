@@ -37,3 +37,21 @@ def test_exporters_declare_their_format():
     for fmt, module in registry.exporters().items():
         assert module.FORMAT == fmt and module.SUFFIX.startswith(".") and module.DESCRIPTION
         assert callable(module.export)
+
+
+def test_campaign_procedures_imports_only_the_campaign_and_finds_what_a_full_scan_finds():
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    code = ("import sys; from workbench.registry import campaign_procedures, procedures; "
+            "found = [m.NAME for m in campaign_procedures({'accel', 'gyro', 'mag'})]; "
+            "loaded = sorted(n for n in sys.modules if n.startswith('procedures.')); "
+            "full = [m.NAME for m in sorted((m for m in procedures().values() if m.CAMPAIGN_ORDER is not None), "
+            "key=lambda m: m.CAMPAIGN_ORDER)]; print(found, loaded, full, sep='|')")
+    root = Path(__file__).resolve().parents[2]
+    out = subprocess.run([sys.executable, "-c", code], cwd=root, capture_output=True, text=True, check=True,
+                         env={**__import__("os").environ, "PYTHONPATH": str(root)}).stdout.strip()
+    found, loaded, full = out.split("|")
+    assert found == full  # the same procedures in the same order as importing every module
+    assert "procedures.allan" in loaded and "procedures.ahrs_table" not in loaded and "procedures.land_ins" not in loaded
