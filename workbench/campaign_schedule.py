@@ -142,6 +142,7 @@ def _in_parallel(plan, progress_for, n_workers: int) -> Done:
             return ("figures", k, tuple(names)), "figures", k, done.results[k], names
         return None
 
+    plan.preload()  # imported once here, not once per worker
     with Workers(n_workers, _handler(plan)) as pool:
         while True:
             for w in pool.idle:

@@ -279,6 +279,14 @@ class CampaignPlan:
         seq = proc.sequence(self.spec, **validate(proc, self.sequence_options(k), "sequence"))
         return float(sum(p.duration_s for p in seq.expand()))
 
+    def preload(self) -> None:
+        """Import what recording needs (the simulated rig, Parquet), once, before worker processes fork."""
+        import pyarrow.pandas_compat  # noqa: F401 - frames to Arrow tables
+        import pyarrow.parquet  # noqa: F401 - the step parts and the samples file
+
+        if self.cfg.driver == "sim":
+            import workbench.sim.rig  # noqa: F401
+
     def record(self, k: int, progress: Progress | None = None) -> Session:
         """Record procedure ``k``'s sequence."""
         return record_procedure(self.procs[k], self.spec, self.truth, self.cfg, self.seed + 101 * (k + 1),
