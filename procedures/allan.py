@@ -142,7 +142,8 @@ def analyze(session, **options) -> ProcedureResult:
     if gmwm:  # the noise block above is GMWM's; the IEEE 952 terms stay in result[triad]["terms"]
         result["gmwm"] = {t: g.to_dict() for t, g in gmwm.items()}
     return ProcedureResult(NAME, result=result, calibration=cal, payload=analyses,
-                           summary=lines + _summary(analyses) + [line for g in gmwm.values() for line in g.summary()],
+                           summary=lines + [line for a in analyses.values() for line in a.summary()]
+                           + [line for g in gmwm.values() for line in g.summary()],
                            warnings=[w for a in analyses.values() for w in a.warnings])
 
 
@@ -159,35 +160,9 @@ def _gmwm(session, step, o, analyses, rows: slice | None) -> dict:
 
 
 def _result_dict(analyses: dict[str, AllanAnalysis], step) -> dict:
-    out: dict = {"step": step.index, "duration_s": step.duration, "temperature_c": step.temperature_c}
-    for triad, an in analyses.items():
-        c = an.ci.curve
-        out[triad] = {
-            "tau_s": c.tau.tolist(), "adev": c.dev.T.tolist(), "adev_lo": an.ci.lo.T.tolist(),
-            "adev_hi": an.ci.hi.T.tolist(), "edf": an.ci.edf.T.tolist(), "alpha": an.ci.alpha.T.tolist(),
-            "terms": an.noise_block(),
-            "tau_range_s": {t: [f.terms[t].tau_range for f in an.fits] for t in TERMS},
-            "read_off": {k: [f.read_off[k] if np.isfinite(f.read_off[k]) else None for f in an.fits]
-                         for k in an.fits[0].read_off},
-            "chi2_red": [f.chi2_red for f in an.fits],
-        }
-    return out
-
-
-def _summary(analyses: dict[str, AllanAnalysis]) -> list[str]:
-    lines = []
-    for triad, an in analyses.items():
-        for f in an.fits:
-            parts = []
-            for t in TERMS:
-                term = f.terms[t]
-                if term.observed:
-                    lo, hi = (term_text(triad, t, v).split(" ", 1)[1] for v in term.ci95)
-                    parts.append(f"{term_text(triad, t, term.value)} [{lo} .. {hi}]")
-            bounds = [f"{term_text(triad, t, f.terms[t].ci95[1])}" for t in TERMS if not f.terms[t].observed]
-            lines.append(f"{triad} {f.column}: " + "; ".join(parts)
-                         + (f"; not observed (95 % upper bound): {', '.join(bounds)}" if bounds else ""))
-    return lines
+    """The step's facts and each triad's :meth:`AllanAnalysis.to_dict`."""
+    return {"step": step.index, "duration_s": step.duration, "temperature_c": step.temperature_c,
+            **{triad: an.to_dict() for triad, an in analyses.items()}}
 
 
 def figures(result: ProcedureResult) -> dict:

@@ -43,7 +43,8 @@ Classic read-offs for comparison with datasheets and the thesis tables (1.1, 1.2
 N on the slope -1/2 line at tau = 1 s, K on the slope +1/2 line at tau = 3 s, B = min ADEV / 0.664.
 
 Public: :data:`TERMS`, :class:`NoiseTerm`, :class:`ChannelNoise`, :func:`fit_channel`, :func:`fit_terms`,
-:func:`read_offs`, :class:`AllanAnalysis`, :func:`analyze_record`, :func:`analyze_stream`.
+:func:`read_offs`, :class:`AllanAnalysis` (with its ``to_dict`` / ``summary``, in
+:mod:`workbench.analysis.allan_report`, re-exported), :func:`analyze_record`, :func:`analyze_stream`.
 """
 
 from __future__ import annotations
@@ -56,9 +57,10 @@ import numpy as np
 
 from workbench.allan_model import FLICKER_AVAR, avar_basis
 from workbench.analysis.allan_ci import DeviationCI, chi2_ppf
+from workbench.analysis.allan_report import CALSET_NAMES, AllanAnalysis  # noqa: F401 (re-exported)
+from workbench.analysis.allan_terms import TERMS
 from workbench.analysis.small_solvers import nnls, root_bracket
 
-TERMS = ("quantization", "white", "bias_instability", "rrw", "rate_ramp")
 FLICKER = FLICKER_AVAR  # AVAR per B^2; ADEV floor 0.664 B (workbench.allan_model)
 CORRELATION = 2.0  # overlapping AVAR points at octave taus share about half their information:
 # weighted chi-squared differences are divided by this before model comparison
@@ -345,38 +347,6 @@ def fit_terms(ci: DeviationCI) -> tuple[ChannelNoise, ...]:
 
 
 # -- a whole record ------------------------------------------------------------------------
-
-CALSET_NAMES = {
-    "gyro": {"quantization": "quantization", "white": "arw", "bias_instability": "bias_instability", "rrw": "rrw",
-             "rate_ramp": "rate_ramp"},
-    "accel": {"quantization": "quantization", "white": "vrw", "bias_instability": "bias_instability", "rrw": "rrw",
-              "rate_ramp": "rate_ramp"},
-}
-
-
-@dataclass(frozen=True)
-class AllanAnalysis:
-    """Allan analysis of one record: the OADEV curve with intervals and the noise terms per channel.
-
-    ``quantity`` is ``"gyro"``, ``"accel"`` or None (units then the input's SI unit).
-    """
-
-    ci: DeviationCI
-    fits: tuple[ChannelNoise, ...]
-    quantity: str | None
-    warnings: tuple[str, ...] = ()
-
-    def noise_block(self) -> dict:
-        """The calibration set's ``noise.<triad>`` block: per term a (3,) list (None = not observed)
-        and ``<name>_ci95`` a (3,) list of [lo, hi] (for a term not observed, [0, upper bound])."""
-        if self.quantity not in CALSET_NAMES or len(self.fits) != 3:
-            raise ValueError("noise_block needs a gyro or accel triad (three channels)")
-        block: dict = {}
-        for term, name in CALSET_NAMES[self.quantity].items():
-            block[name] = [t.value if t.observed else None for t in (f.terms[term] for f in self.fits)]
-            block[name + "_ci95"] = [list(f.terms[term].ci95) for f in self.fits]
-        return block
-
 
 def analyze_record(y: np.ndarray, rate: float, columns: tuple[str, ...] | list[str], quantity: str | None = None,
                    taus: str | np.ndarray = "octave", gap_policy: str = "error", source: str = "data") -> AllanAnalysis:

@@ -1,6 +1,6 @@
 """Lab units and text of the IEEE 952 terms (no plotting: the CLI prints tables with it).
 
-``TERM_UNITS`` per quantity (gyro / accel; a :mod:`workbench.units` name per term),
+``TERMS`` the IEEE 952 terms in model order, ``TERM_UNITS`` per quantity (gyro / accel; a :mod:`workbench.units` name per term),
 ``TERM_LABELS`` the one-letter symbols (Q N B K R), :func:`term_text` one value with its label.
 """
 
@@ -9,6 +9,8 @@ from __future__ import annotations
 import math
 
 from workbench import units
+
+TERMS = ("quantization", "white", "bias_instability", "rrw", "rate_ramp")
 
 # Allan term -> its quantity in units.QUANTITIES (one vocabulary with the CLI, dashboard and certificate)
 _VOCABULARY = {"quantization": "quantization", "white": "white", "bias_instability": "bias_instability",
