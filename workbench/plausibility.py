@@ -16,7 +16,9 @@ or against :data:`GENERIC` bounds when the grade is unknown (a recording of anot
   condition number <= :data:`COND_MAX` (a soft iron of 289 % is not a calibration);
 - magnetometer: field norm within 5 % of the session's reference, else in 20-70 µT (the
   geomagnetic field anywhere on Earth); dip within ±90° and within 5° of a reference dip when
-  the result has one (``reference_field`` of the magnetometer analysis);
+  the result has one (``reference_field`` of the magnetometer analysis); the dip's sign that of the
+  site's hemisphere poleward of 25° latitude (a field pointing up in the north: the magnetometer's axes
+  are inverted, which no motion can show: the gyro sees ``m`` and ``-m`` turn alike);
 - an imported session whose axis check failed (the gyro's rotation fits the accelerometer or
   magnetometer only with another axis mapping: ``options['import']['axis_check']``);
 - static steps of the session: ``|ω|`` at most the Earth rate plus the grade's bias range (and,
@@ -49,6 +51,10 @@ COND_MAX = 3.0  # condition number of I + M (|M| < 0.5 gives at most 1.5 / 0.5 =
 FIELD_RANGE_UT = (20.0, 70.0)  # geomagnetic main field, equator to poles
 FIELD_REF_TOL = 0.05  # fitted field norm vs the session's reference, relative
 DIP_TOL_DEG = 5.0
+# poleward of this latitude the geomagnetic dip has the latitude's sign everywhere (the dip equator stays
+# within about 15° of the geographic one): a field that points up in the north is an inverted magnetometer
+DIP_HEMISPHERE_LAT_DEG = 25.0
+DIP_SIGN_MIN_DEG = 10.0  # a dip this far on the wrong side is not a near-horizontal field's scatter
 MOUNT_MISALIGNMENT = 0.05  # rad: a unit on its fixture (or held by hand) may be off by ~3° besides its own M
 # bounds per axis when the grade is unknown: a consumer MEMS board (MPU-6050 class: zero-rate
 # output ±20 °/s, zero-g offset up to ±150 mg; HMC5883L full scale ±8.1 gauss = 810 µT)
@@ -273,6 +279,10 @@ def _field_checks(tc: TriadCalibration, session, result: Mapping) -> list[Failur
                                                  + _mixup_hint("mag", norm, *FIELD_RANGE_UT)))
     fit = result.get("fit") if isinstance(result.get("fit"), Mapping) else {}
     dip = fit.get("dip_rad")
+    if dip is None:  # a hand-held fit without the dip model: the dip its calibrated field shows against gravity
+        free = result.get("free_quality") if isinstance(result.get("free_quality"), Mapping) else {}
+        shown = (free.get("fit") or {}).get("dip_deg") if isinstance(free.get("fit"), Mapping) else None
+        dip = None if shown is None else float(np.radians(shown))
     if dip is not None:
         dip_deg = float(np.degrees(dip))
         ref_dip = None if ref_field is None else ref_field.get("dip_deg")
@@ -281,7 +291,20 @@ def _field_checks(tc: TriadCalibration, session, result: Mapping) -> list[Failur
         elif ref_dip is not None and abs(dip_deg - ref_dip) > DIP_TOL_DEG:
             out.append(Failure("mag.dip", f"mag dip {dip_deg:.4g}° is not within {DIP_TOL_DEG:g}° of the "
                                           f"reference {ref_dip:.4g}°"))
+        elif session is not None:
+            out += _dip_sign_check(dip_deg, session.site.latitude_deg)
     return out
+
+
+def _dip_sign_check(dip_deg: float, latitude_deg: float) -> list[Failure]:
+    """A dip (°) on the wrong side of the horizontal for the site's latitude (°), poleward of
+    :data:`DIP_HEMISPHERE_LAT_DEG`: the magnetometer's overall sign is inverted."""
+    if abs(latitude_deg) < DIP_HEMISPHERE_LAT_DEG or dip_deg * np.sign(latitude_deg) > -DIP_SIGN_MIN_DEG:
+        return []
+    return [Failure("mag.dip", f"mag dip {dip_deg:+.1f}° at latitude {latitude_deg:+.1f}°: the field points "
+                               f"{'up' if dip_deg < 0 else 'down'}, where it points "
+                               f"{'down' if latitude_deg > 0 else 'up'} (magnetometer axes inverted? negate all "
+                               "three in the import profile)")]
 
 
 def _noise_checks(cal: CalibrationSet) -> list[Failure]:

@@ -261,3 +261,32 @@ def test_real_gyro_in_deg_s_declared_rad_s_is_refused(tmp_path, db, capsys):
     err = _one_line_exit_2(capsys, ["analyze", "multiposition", str(session)])
     assert "gyro bias x = " in err and "gyro in deg/s? values look 57.3x too large" in err
     assert db.list_sets() == []
+
+
+@pytest.mark.skipif(MARG is None, reason="shared/data/marg_mpu6050_hmc5883l is not beside the checkout")
+def test_real_magnetometer_with_inverted_axes_is_refused(tmp_path, db, capsys):
+    # the motion fixes the mag-to-IMU mapping only up to one overall sign (the gyro sees m and -m turn alike):
+    # the three mag axes negated, tilt-sphere's calibrated field points up (dip about -65°) at the profile's
+    # latitude 49° N, where the README of the data gives +64-66°: refused, nothing stored
+    text = (ROOT / "fixtures" / "import_profiles" / "marg_mpu6050_hmc5883l.yaml").read_text()
+    mapping = ("      mx: {column: mx_gauss, unit: gauss, scale: -1}\n      my: {column: mz_gauss, unit: gauss, scale: -1}\n"
+               "      mz: {column: my_gauss, unit: gauss}\n")
+    assert mapping in text
+    text = text.replace(mapping, "      mx: {column: mx_gauss, unit: gauss}\n      my: {column: mz_gauss, unit: gauss}\n"
+                                 "      mz: {column: my_gauss, unit: gauss, scale: -1}\n")
+    profile = tmp_path / "inverted.yaml"
+    profile.write_text(text)
+    session = tmp_path / "s"
+    assert main(["import", str(profile), str(MARG / "tilt-sphere"), "--out", str(session)]) == 0
+    capsys.readouterr()
+    err = _one_line_exit_2(capsys, ["analyze", "magnetometer", str(session)])
+    assert "mag dip -6" in err and "at latitude +49.0°: the field points up" in err and db.list_sets() == []
+
+
+def test_dip_sign_is_checked_only_poleward_of_the_dip_equator():
+    # the geomagnetic dip equator stays within ~15° of the geographic one: no verdict at 10° N, at 49° N a dip of
+    # -65° (field up) is refused, +65° and a near-horizontal -5° pass
+    from workbench.plausibility import _dip_sign_check
+
+    assert _dip_sign_check(-30.0, 10.0) == [] and _dip_sign_check(65.0, 49.0) == [] and _dip_sign_check(-5.0, 49.0) == []
+    assert _dip_sign_check(-65.0, 49.0)[0].quantity == "mag.dip" and _dip_sign_check(60.0, -35.0)[0].quantity == "mag.dip"

@@ -37,11 +37,13 @@ class FitFigures:
     angle_spread: float
     norm_rms_held_out: float
     angle_spread_held_out: float
+    dip: float = float("nan")  # rad, mean of 90° - field-to-gravity angle in sample (> 0: the field points down)
 
     def to_dict(self) -> dict:
         return {"field_norm_rms_pct": 100 * self.norm_rms, "angle_spread_deg": float(np.degrees(self.angle_spread)),
                 "field_norm_rms_pct_held_out": 100 * self.norm_rms_held_out,
-                "angle_spread_deg_held_out": float(np.degrees(self.angle_spread_held_out))}
+                "angle_spread_deg_held_out": float(np.degrees(self.angle_spread_held_out)),
+                "dip_deg": float(np.degrees(self.dip)) if np.isfinite(self.dip) else None}
 
 
 @dataclass(frozen=True)
@@ -65,7 +67,7 @@ class FreeQuality:
         def row(name, f):
             return (f"{name}: field-norm RMS {100 * f.norm_rms:.2f} % (held out {100 * f.norm_rms_held_out:.2f} %), "
                     f"field-to-gravity angle spread {np.degrees(f.angle_spread):.2f}° "
-                    f"(held out {np.degrees(f.angle_spread_held_out):.2f}°)")
+                    f"(held out {np.degrees(f.angle_spread_held_out):.2f}°), dip {np.degrees(f.dip):+.1f}°")
         out = [f"hand-held quality, no truth needed ({self.n_points} points fitted; held out = fitted before "
                f"t = {self.split_t:.1f} s, judged after):", "  " + row(method, self.fit)]
         out.append("  " + (row("plain 10-coefficient ellipsoid", self.baseline) if self.baseline is not None
@@ -89,6 +91,14 @@ def figures_of(fit: MagFit, mag: np.ndarray, down: np.ndarray, gravity_ok: np.nd
     norm, angle = point_values(fit, mag, down)
     ok = np.ones(len(mag), bool) if gravity_ok is None else gravity_ok
     return float(np.sqrt(np.mean(norm**2))), float(np.std(angle[ok])) if ok.any() else float("nan")
+
+
+def mean_dip(fit: MagFit, mag: np.ndarray, down: np.ndarray, gravity_ok: np.ndarray) -> float:
+    """Dip (rad, > 0 where the field points below the horizontal) of the field ``fit`` calibrates from raw
+    points ``mag`` (N, 3) µT: 90° minus the mean angle to the unit down directions ``down`` (N, 3) over the
+    points ``gravity_ok`` (N,) bool whose specific force is gravity; NaN without such points."""
+    angle = point_values(fit, mag, down)[1][gravity_ok]
+    return float(np.pi / 2 - np.mean(angle)) if angle.size else float("nan")
 
 
 Fitter = Callable[[np.ndarray], MagFit]  # fits the points selected by a (N,) bool mask
@@ -122,7 +132,7 @@ def holdout_quality(fitter: Fitter, fit: MagFit, mag: np.ndarray, accel: np.ndar
         c, d = held_out(one, mag, down, gravity_ok, first, second)
         norm, angle = point_values(fit_all, mag, down)
         series[f"{name}_norm"], series[f"{name}_angle"] = norm, np.where(gravity_ok, angle, np.nan)
-        return FitFigures(a, b, c, d)
+        return FitFigures(a, b, c, d, mean_dip(fit_all, mag, down, gravity_ok))
 
     ours = figures("fit", fit, fitter)
     try:
