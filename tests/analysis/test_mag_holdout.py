@@ -1,0 +1,120 @@
+"""Truth-free quality of a hand-held magnetometer fit and the split-half sigma check
+(workbench/analysis/mag_holdout.py) on simulated points with a known calibration.
+
+Points: a unit at random attitudes in a field of 48 µT, dip 60°; raw = S h + b with a known soft
+iron S and hard iron b, white noise s = 0.2 µT per axis on the raw samples (after S: the
+calibrated noise is white with std s to first order, S being near I); the accelerometer gives the
+exact down direction.
+"""
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from workbench.analysis.mag_fit import MagFit
+from workbench.analysis.mag_holdout import (GROUPS, figures_of, halves, holdout_quality, point_values,
+                                            scaled_sigmas, split_half_scale)
+
+B, DIP, S_UT = 48.0, np.radians(60.0), 0.2
+FIELD = B * np.array([np.cos(DIP), 0.0, np.sin(DIP)])
+G = 9.81
+SOFT = np.eye(3) + np.array([[0.04, 0.01, -0.01], [0.01, -0.02, 0.015], [-0.01, 0.015, 0.03]])
+BIAS = np.array([15.0, -22.0, 7.0])
+
+
+def _truth_fit(**kw) -> MagFit:
+    base = dict(method="ellipsoid", bias=BIAS, bias_sigma=np.full(3, 0.1), soft_iron=SOFT,
+                soft_iron_sigma=np.full((3, 3), 1e-3), field_norm_ut=B, field_norm_sigma=0.05, residual_rms_ut=S_UT,
+                n_points=0, scale_fixed_by="det", dip=DIP, dip_sigma=1e-3, declination=None, declination_sigma=None,
+                alignment=np.zeros(3), alignment_sigma=np.full(3, 1e-3))
+    base.update(kw)
+    return MagFit(**base)
+
+
+def _points(n: int, seed: int, noise: float = S_UT):
+    rng = np.random.default_rng(seed)
+    att = Rotation.random(n, random_state=seed)
+    h = att.inv().apply(FIELD)
+    raw = h @ SOFT.T + BIAS + rng.normal(0.0, noise, (n, 3))
+    accel = att.inv().apply([0.0, 0.0, -G])
+    return raw, accel, np.sort(rng.uniform(0, 300, n))
+
+
+def test_point_values_of_the_true_calibration_on_clean_points():
+    """Noise-free: calibrated norm = B (deviation 0) and the field-to-down angle = 90° - dip = 30° (1e-12)."""
+    raw, accel, _ = _points(300, 1, noise=0.0)
+    norm, angle = point_values(_truth_fit(), raw, -accel / G)
+    np.testing.assert_allclose(norm, 0.0, atol=1e-12)
+    np.testing.assert_allclose(angle, np.pi / 2 - DIP, atol=1e-12)
+
+
+def test_figures_of_the_true_calibration_are_the_noise_over_the_field():
+    """The norm deviation is the radial noise over B (std s/B = 0.42 %), the angle's the noise across the
+    field in the field-down plane over B (std s/B rad). N = 4000: the sample std has relative
+    sigma 1/sqrt(2N) = 1.1 %; 4 sigma. Gravity mask: the angle is judged on the masked points only."""
+    raw, accel, _ = _points(4000, 2)
+    down = -accel / G
+    norm_rms, angle_sd = figures_of(_truth_fit(), raw, down)
+    tol = 4 / np.sqrt(2 * 4000)
+    assert norm_rms == pytest.approx(S_UT / B, rel=tol)
+    assert angle_sd == pytest.approx(S_UT / B, rel=tol)
+    bad = np.zeros(4000, bool)
+    bad[::2] = True
+    down_wrong = down.copy()
+    down_wrong[bad] = [1.0, 0.0, 0.0]  # points whose specific force is not gravity
+    _, sd_masked = figures_of(_truth_fit(), raw, down_wrong, ~bad)
+    assert sd_masked == pytest.approx(S_UT / B, rel=4 / np.sqrt(2 * 2000))
+
+
+def test_held_out_figures_of_a_fixed_calibration_and_the_baseline():
+    """A fitter that returns the true calibration: held out = in sample = s/B within the 4-sigma band
+    of the halves (N/2 points each: 1/sqrt(N)). The plain ellipsoid fitted to the same points
+    absorbs 9 of N degrees of freedom: its norm RMS is s/B (1 - 9/N) within the same band; its held-out
+    one is s/B plus the error of 9 coefficients fitted on N/2 points, sqrt(1 + 9/(N/2)) ~ +0.2 %."""
+    n = 4000
+    raw, accel, t = _points(n, 3)
+    truth = _truth_fit()
+    q = holdout_quality(lambda sel: truth, truth, raw, accel, t, np.ones(n, bool))
+    split, first, second = halves(t)
+    assert q.split_t == pytest.approx(np.median(t)) and first.sum() == second.sum() == n // 2
+    tol = 4 / np.sqrt(n)
+    for value in (q.fit.norm_rms, q.fit.angle_spread, q.fit.norm_rms_held_out, q.fit.angle_spread_held_out):
+        assert value == pytest.approx(S_UT / B, rel=tol)
+    assert q.baseline is not None
+    assert q.baseline.norm_rms == pytest.approx(S_UT / B, rel=tol)
+    assert q.baseline.norm_rms_held_out == pytest.approx(S_UT / B, rel=tol)
+    assert q.n_points == n and len(q.series["fit_norm"]) == n
+
+
+def test_split_half_scale_is_one_for_agreeing_halves_and_the_rms_z_otherwise():
+    """Two fits whose coefficients are drawn around the truth with their stated sigmas: z ~ N(0, 1),
+    so over 300 pairs the mean of rms z^2 is 1 per group (sigma of that mean: sqrt(2 / (k 300)) for k
+    coefficients; 4 sigma). Sigmas stated 3x too small: rms z ~ 3 and the scale follows it."""
+    rng = np.random.default_rng(6)
+    sb, ss, sn = 0.1, 1e-3, 0.05
+    rms2 = {g: [] for g in GROUPS}
+    for _ in range(300):
+        a, b = (_truth_fit(bias=BIAS + rng.normal(0, sb, 3), soft_iron=SOFT + rng.normal(0, ss, (3, 3)),
+                           field_norm_ut=B + rng.normal(0, sn)) for _ in range(2))
+        for g, (scale, rms) in split_half_scale(a, b).items():
+            assert scale == max(1.0, rms)
+            rms2[g].append(rms ** 2)
+    for g, k in zip(GROUPS, (3, 9, 1)):
+        assert np.mean(rms2[g]) == pytest.approx(1.0, abs=4 * np.sqrt(2 / (k * 300))), g
+    a = _truth_fit(bias=BIAS + rng.normal(0, 3 * sb, 3))
+    b = _truth_fit(bias=BIAS + rng.normal(0, 3 * sb, 3))
+    # with 3 coefficients one draw of rms z^2 / 9 is chi2_3 / 3: within [0.02, 4.6] at 1e-3 each side
+    assert 0.02 * 9 < split_half_scale(a, b)["hard iron"][1] ** 2 < 4.6 * 9
+
+
+def test_unobserved_coefficients_are_left_out_and_sigmas_scale_per_group():
+    a = _truth_fit(bias=BIAS + [0.1, 0.0, 0.0], bias_sigma=np.array([0.1, np.nan, 0.1]))
+    b = _truth_fit()
+    rms = split_half_scale(a, b)["hard iron"][1]
+    assert rms == pytest.approx(0.5)  # z = 0.1 / hypot(0.1, 0.1) on x, 0 on z, y unobserved: sqrt(0.5 / 2)
+    fit = scaled_sigmas(_truth_fit(declination_sigma=None), {"hard iron": 2.0, "soft iron": 3.0})
+    np.testing.assert_allclose(fit.bias_sigma, 0.2)
+    np.testing.assert_allclose(fit.soft_iron_sigma, 3e-3)
+    assert fit.field_norm_sigma == 0.05 and fit.dip_sigma == pytest.approx(3e-3)
+    assert fit.declination_sigma is None
+    np.testing.assert_allclose(fit.alignment_sigma, 3e-3)
