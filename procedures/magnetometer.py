@@ -121,30 +121,27 @@ def summary_lines(cal) -> list[str]:
     """Lines for people, in lab units (µT, %, °)."""
     fit = cal.fit
 
-    def pm(v, s, unit, digits=3):
-        return f"{units.fmt(v, unit, digits)} ± {units.fmt(s, unit, 2)}"
-
     off = fit.soft_iron - np.eye(3)
     finite = fit.soft_iron_sigma[np.isfinite(fit.soft_iron_sigma)]
     max_sig = float(finite.max()) if finite.size else float("nan")
     if fit.scale_fixed_by == "reference":
         norm = f"field norm: {units.fmt(fit.field_norm_ut, 'uT', 4)} (given: fixes the scale of I+M)"
     else:
-        norm = f"field norm: {pm(fit.field_norm_ut, fit.field_norm_sigma, 'uT', 4)} (scale fixed by {fit.scale_fixed_by})"
+        norm = f"field norm: {units.pm(fit.field_norm_ut, fit.field_norm_sigma, 'uT', 4)} (scale fixed by {fit.scale_fixed_by})"
     lines = [f"method: {fit.method} ({cal.choice.reason})",
-             "hard iron: " + ", ".join(f"{a} {pm(v, s, 'uT')}" for a, v, s in zip("xyz", fit.bias, fit.bias_sigma)),
+             "hard iron: " + ", ".join(f"{a} {units.pm(v, s, 'uT', 3)}" for a, v, s in zip("xyz", fit.bias, fit.bias_sigma)),
              f"soft iron: largest |I+M - I| element {np.abs(off).max() * 100:.3g} %, "
              f"largest sigma {units.fmt(max_sig, '%', 2)}",
              norm,
              f"coverage {cal.quality.coverage:.0%} of the sphere, field-norm residual RMS "
              f"{units.fmt(cal.quality.norm_residual_rms_ut, 'uT', 3)}"]
     if fit.dip is not None:
-        lines.append(f"dip: {pm(fit.dip, fit.dip_sigma, 'deg', 5)}")
+        lines.append(f"dip: {units.pm(fit.dip, fit.dip_sigma, 'deg', 5)}")
     if fit.declination is not None:
-        lines.append(f"declination from the reference x axis: {pm(fit.declination, fit.declination_sigma, 'deg', 4)}")
+        lines.append(f"declination from the reference x axis: {units.pm(fit.declination, fit.declination_sigma, 'deg', 4)}")
     if fit.alignment is not None:
         lines.append("IMU-to-mag rotation: " + ", ".join(
-            f"{a} {pm(v, s, 'mrad')}" for a, v, s in zip("xyz", fit.alignment, fit.alignment_sigma)))
+            f"{a} {units.pm(v, s, 'mrad', 3)}" for a, v, s in zip("xyz", fit.alignment, fit.alignment_sigma)))
     if cal.heading is not None:
         base = (f", plain algebraic fit {np.degrees(cal.baseline_heading.rms):.3g}°"
                 if cal.baseline_heading is not None else "")

@@ -158,7 +158,14 @@ def show(triad: str, quantity: str, value_si, sigma_si=None, digits: int = 4) ->
 
     ``sigma_si`` NaN reads "σ not observed"; a NaN / None value reads "not observed".
     """
-    unit = unit_of(triad, quantity)
+    return pm(value_si, sigma_si, unit_of(triad, quantity), digits)
+
+
+def pm(value_si, sigma_si, unit: str, digits: int = 4) -> str:
+    """``value_si ± sigma_si`` (SI) in ``unit``, the unit written once: ``'-2.22 ± 0.005 µT'``.
+
+    ``sigma_si`` None: the value alone; NaN: "(σ not observed)"; a NaN / None value: "not observed".
+    """
     if value_si is None or not np.isfinite(float(value_si)):
         return "not observed"
     value = f"{to_unit(float(value_si), unit):.{digits}g}"

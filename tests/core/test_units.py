@@ -72,3 +72,10 @@ def test_si_unit_of_each_lab_unit():
 
     with pytest.raises(ValueError, match="unknown unit 'furlong'"):
         si_unit("furlong")
+
+
+def test_value_and_sigma_share_one_unit():
+    # the magnetometer is in µT inside: -2.22 µT ± 0.005 µT reads with the unit written once
+    assert units.pm(-2.22, 0.005, "uT", 3) == "-2.22 ± 0.005 µT"
+    assert units.pm(units.from_unit(8.0, "deg/h"), float("nan"), "deg/h") == "8 (σ not observed) °/h"
+    assert units.pm(float("nan"), 1.0, "uT") == "not observed" and units.pm(1.5, None, "uT") == "1.5 µT"
