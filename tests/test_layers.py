@@ -29,7 +29,8 @@ FIXTURE_READERS = ("workbench.grades", "workbench.rigconfig", "workbench.rigsite
 
 RULES = [
     # (modules, forbidden imports, why)
-    ("workbench.session", ("workbench.calset",) + ABOVE_ANALYSES, "the session format is below calibration sets"),
+    *[(m, ("workbench.calset",) + ABOVE_ANALYSES, "the session format is below calibration sets")
+      for m in ("workbench.session", "workbench.session_types", "workbench.session_validate", "workbench.session_files")],
     ("workbench.analysis", ABOVE_ANALYSES + FIXTURE_READERS, "analyses are pure: arguments in, result out"),
     ("workbench.nav", ABOVE_ANALYSES + FIXTURE_READERS, "navigation estimators are pure like analyses"),
     ("workbench.model", ABOVE_ANALYSES + FIXTURE_READERS + ("workbench.calset", "workbench.session"),
