@@ -176,3 +176,14 @@ def test_procedure_with_scale_factor_states(ins_drive, make_calibration):
     res = proc.analyze(session, make_calibration(unit), states=29)
     cal = res.result["calibrated"]
     assert cal["final_error_m"] < 4 * cal["final_sigma_m"] + 3.0
+
+
+def test_speed_test_guards():
+    # eq. 43: |v| <= 2 sigma_v, passed below the creep speed (0.5 m/s: a velocity error beyond 2 sigma at a
+    # stop no longer locks ZUPT out) and failed above zupt_max_speed (2 m/s: a 5 m/s sigma after an hour
+    # unaided let ZUPTs in at 20 m/s on a straight road, where the gyro and acceleration tests pass)
+    from workbench.nav.land_ins import speed_test
+
+    cfg = LandInsConfig()
+    assert speed_test(0.3, 0.01, cfg) and not speed_test(0.6, 0.01, cfg)
+    assert speed_test(1.5, 1.0, cfg) and not speed_test(2.1, 5.0, cfg) and not speed_test(20.0, 12.0, cfg)

@@ -119,6 +119,12 @@ def covariance_analysis(trajectory, grade: GradeErrors, cfg: LandInsConfig = Lan
             "heading_change_deg": float(np.degrees(dpsi))}
 
 
+def speed_test(speed: float, sigma_v: float, cfg: LandInsConfig) -> bool:
+    """Eq. 43 with its two guards: the INS ``speed`` (m/s) passes when it is below ``xi_speed`` times its
+    covariance ``sigma_v`` (m/s), always below ``cfg.creep_speed`` and never above ``cfg.zupt_max_speed``."""
+    return speed <= min(max(cfg.xi_speed * sigma_v, cfg.creep_speed), cfg.zupt_max_speed)
+
+
 def _states(cfg: LandInsConfig) -> int:
     """The filter's state count, checked."""
     if cfg.states not in STATE_COUNTS:
@@ -264,8 +270,7 @@ def run_land_ins(samples, lat0: float, lon0: float, h0: float, heading0: float, 
             w_ie = EARTH_RATE * np.array([np.cos(lat), 0.0, -np.sin(lat)])
             gw = gy[-k_win:].mean(axis=0)
             gyro_static = np.linalg.norm(gw - c.T @ w_ie) <= cfg.xi_gyro
-            speed_static = np.linalg.norm(v) <= max(cfg.xi_speed * np.sqrt(P[3, 3] + P[4, 4] + P[5, 5]),
-                                                    cfg.creep_speed)
+            speed_static = speed_test(float(np.linalg.norm(v)), float(np.sqrt(P[3, 3] + P[4, 4] + P[5, 5])), cfg)
             g_n = np.array([0.0, 0.0, float(normal_gravity(lat, h))])
             rm, rn = radii(lat)
             w_en = np.array([v[1] / (rn + h), -v[0] / (rm + h), -v[1] * np.tan(lat) / (rn + h)])

@@ -77,6 +77,9 @@ class LandInsConfig:
     validity thresholds ``xi_gyro`` rad/s (eq. 42), ``xi_speed`` (eq. 43, 2 = 95 %), ``xi_acc`` m/s²
     (eq. 45), ``creep_speed`` m/s (the speed test of eq. 43 passes below it: the gyro and acceleration
     tests decide there, so a velocity error beyond 2 sigma at a stop does not lock ZUPT out for good),
+    ``zupt_max_speed`` m/s (and fails above it: on a smooth straight road the gyro and acceleration
+    tests pass at constant speed, and an unaided tactical INS's velocity sigma reaches several m/s
+    in the hour, so 2 sigma alone let ZUPTs in at 20 m/s),
     ``nhc_max_rate`` rad/s; gain scaling ``c0``, ``c1`` (eq. 47; None = off); initial
     sigmas ``pos0`` m, ``vel0`` m/s, ``tilt0``, ``yaw0`` rad, ``boresight0`` rad, ``lever0`` m (``tilt0``
     is the levelling's own error; the accelerometer bias it absorbs, ``b_a / g``, is added: coarse
@@ -94,6 +97,7 @@ class LandInsConfig:
     xi_gyro: float = np.radians(0.05)
     xi_speed: float = 2.0
     creep_speed: float = 0.5
+    zupt_max_speed: float = 2.0
     xi_acc: float = 0.05
     nhc_max_rate: float = np.radians(30.0)
     c0: float | None = 1.0
