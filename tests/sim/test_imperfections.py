@@ -168,3 +168,30 @@ def test_procedure_options_switch_them_on(tmp_path):
     assert {"imperfections", "table_wobble_deg"} <= {r["name"] for r in option_rows(mp)}
     with pytest.raises(WorkbenchError, match="simulated rig only"):
         open_rig(replace(cfg, driver="acme"), TRUTH, 0, imperfections=Imperfections(turn_on_bias={"gyro": 1.0}))
+
+
+def test_resume_switches_the_same_imperfections_on(tmp_path):
+    # a recording with -o imperfections=all interrupted after 2 of 6 steps and resumed (the manifest's
+    # rig_options) gives the same samples as one recorded without interruption: the resumed part has the
+    # same power-on draws and the warm-up / drift clock continues (VirtualIMU state "k")
+    import procedures.multiposition as mp
+    from workbench.jobs import record_procedure, resume_procedure
+    from workbench.rigconfig import load_rig_config
+
+    class Stop(Exception):
+        pass
+
+    def progress(i, n, rec):
+        if i + 1 == 2:
+            raise Stop
+
+    cfg = load_rig_config("sim")
+    opts = {"positions": 6, "dwell_s": 2.0, "imperfections": "all"}
+    whole = record_procedure(mp, SPEC, TRUTH, cfg, 9, tmp_path / "whole", opts)
+    with pytest.raises(Stop):
+        record_procedure(mp, SPEC, TRUTH, cfg, 9, tmp_path / "cut", opts, progress=progress)
+    resumed = resume_procedure(tmp_path / "cut")
+    cols = ["gx", "gy", "gz", "ax", "ay", "az"]
+    np.testing.assert_allclose(resumed.samples[cols].to_numpy(), whole.samples[cols].to_numpy(), rtol=0, atol=1e-12)
+    plain = record_procedure(mp, SPEC, TRUTH, cfg, 9, None, {"positions": 6, "dwell_s": 2.0})
+    assert np.abs(plain.samples[cols].to_numpy() - whole.samples[cols].to_numpy()).max() > 1e-3  # they are on
