@@ -203,19 +203,24 @@ MARG = next((p / "shared" / "data" / "marg_mpu6050_hmc5883l" for p in (ROOT.pare
              if (p / "shared" / "data" / "marg_mpu6050_hmc5883l").exists()), None)
 
 
+def _import_edited(tmp_path, capsys, recording: str, edit) -> Path:
+    """A MARG recording imported through the shipped profile with ``edit(text) -> text`` applied to it."""
+    profile = tmp_path / "edited.yaml"
+    profile.write_text(edit((ROOT / "fixtures" / "import_profiles" / "marg_mpu6050_hmc5883l.yaml").read_text()))
+    session = tmp_path / "s"
+    assert main(["import", str(profile), str(MARG / recording), "--out", str(session)]) == 0
+    capsys.readouterr()
+    return session
+
+
 @pytest.mark.skipif(MARG is None, reason="shared/data/marg_mpu6050_hmc5883l is not beside the checkout")
 def test_hand_held_tumble_declared_as_a_turn_is_not_fitted_from_its_table_angle(tmp_path, db, capsys):
     # issue 21: tilt-sphere declared as one by-hand turn. The turn's table angle is a guess: the magnetometer
     # fits it from the unit's own sensors (as a free step), never with the attitude fit (which gave soft iron
     # ~250-290 %); asking for the attitude fit is refused in one line, nothing stored or written
-    text = (ROOT / "fixtures" / "import_profiles" / "marg_mpu6050_hmc5883l.yaml").read_text()
-    text += ("sections:\n  steps:\n    turn: {kind: rate, mount: z-down, axis: z, turn_deg: 360.0, by_hand: true}\n"
-             "  inline: {turn: [0, 5000]}\n")
-    profile = tmp_path / "turn.yaml"
-    profile.write_text(text)
-    session = tmp_path / "s"
-    assert main(["import", str(profile), str(MARG / "tilt-sphere"), "--out", str(session)]) == 0
-    capsys.readouterr()
+    session = _import_edited(tmp_path, capsys, "tilt-sphere", lambda text: text + (
+        "sections:\n  steps:\n    turn: {kind: rate, mount: z-down, axis: z, turn_deg: 360.0, by_hand: true}\n"
+        "  inline: {turn: [0, 5000]}\n"))
     out = tmp_path / "cal.json"
     err = _one_line_exit_2(capsys, ["analyze", "magnetometer", str(session), "--out", str(out), "-o", "method=attitude"])
     assert "needs the attitude" in err and db.list_sets() == [] and not out.exists()
@@ -251,13 +256,8 @@ def test_an_import_whose_axis_check_failed_is_refused(tmp_path, db, spec):
 def test_real_gyro_in_deg_s_declared_rad_s_is_refused(tmp_path, db, capsys):
     # the MARG board held still, its gyro (deg/s in the file) declared rad/s in the profile: the still-stretch
     # bias of ~4.5 °/s reads 258 °/s; an unknown grade's bound is 30 °/s per axis
-    text = (ROOT / "fixtures" / "import_profiles" / "marg_mpu6050_hmc5883l.yaml").read_text()
-    text = text.replace("_dps, unit: deg/s}", "_dps, unit: rad/s}")
-    profile = tmp_path / "rad.yaml"
-    profile.write_text(text)
-    session = tmp_path / "s"
-    assert main(["import", str(profile), str(MARG / "unmoved-x-pointing-up"), "--out", str(session)]) == 0
-    capsys.readouterr()
+    session = _import_edited(tmp_path, capsys, "unmoved-x-pointing-up",
+                             lambda text: text.replace("_dps, unit: deg/s}", "_dps, unit: rad/s}"))
     err = _one_line_exit_2(capsys, ["analyze", "multiposition", str(session)])
     assert "gyro bias x = " in err and "gyro in deg/s? values look 57.3x too large" in err
     assert db.list_sets() == []
@@ -268,17 +268,16 @@ def test_real_magnetometer_with_inverted_axes_is_refused(tmp_path, db, capsys):
     # the motion fixes the mag-to-IMU mapping only up to one overall sign (the gyro sees m and -m turn alike):
     # the three mag axes negated, tilt-sphere's calibrated field points up (dip about -65°) at the profile's
     # latitude 49° N, where the README of the data gives +64-66°: refused, nothing stored
-    text = (ROOT / "fixtures" / "import_profiles" / "marg_mpu6050_hmc5883l.yaml").read_text()
     mapping = ("      mx: {column: mx_gauss, unit: gauss, scale: -1}\n      my: {column: mz_gauss, unit: gauss, scale: -1}\n"
                "      mz: {column: my_gauss, unit: gauss}\n")
-    assert mapping in text
-    text = text.replace(mapping, "      mx: {column: mx_gauss, unit: gauss}\n      my: {column: mz_gauss, unit: gauss}\n"
-                                 "      mz: {column: my_gauss, unit: gauss, scale: -1}\n")
-    profile = tmp_path / "inverted.yaml"
-    profile.write_text(text)
-    session = tmp_path / "s"
-    assert main(["import", str(profile), str(MARG / "tilt-sphere"), "--out", str(session)]) == 0
-    capsys.readouterr()
+    inverted = ("      mx: {column: mx_gauss, unit: gauss}\n      my: {column: mz_gauss, unit: gauss}\n"
+                "      mz: {column: my_gauss, unit: gauss, scale: -1}\n")
+
+    def invert(text: str) -> str:
+        assert mapping in text
+        return text.replace(mapping, inverted)
+
+    session = _import_edited(tmp_path, capsys, "tilt-sphere", invert)
     err = _one_line_exit_2(capsys, ["analyze", "magnetometer", str(session)])
     assert "mag dip -6" in err and "at latitude +49.0°: the field points up" in err and db.list_sets() == []
 
