@@ -16,7 +16,7 @@ def test_to_result_is_json_in_labelled_units():
     json.dumps(res, allow_nan=False)  # NaN (not observed) became null
     assert res["azimuth_deg"] == pytest.approx(320.0, abs=1e-6)  # -40° in [0, 360)
     assert res["azimuth_error_mrad"] == pytest.approx(0.0, abs=1e-6)
-    assert summary[0].startswith("azimuth of body x at table zero: 320.0000°")
+    assert summary[0].startswith("azimuth of body x at table zero: 320.0000 ± 0° (1σ = 0 mrad")  # one unit per figure
 
 
 def test_sequence_table_distances_from_the_mean():

@@ -64,7 +64,7 @@ def test_noise_rows_with_their_intervals():
 
 def test_texts():
     assert co.value_text(np.nan) == "—" and co.value_text(1.234567) == "1.2346"
-    assert co.sigma_text(np.nan) == "not observed" and co.sigma_text(0.1, k=2) == "0.2"
+    assert co.sigma_text(np.nan) == "not observed" and co.sigma_text(0.1, k=2) == "0.20"  # two significant digits of the k = 2 uncertainty
     assert co.ci_text(None) == "" and co.ci_text((0.18, 0.22)) == "0.18 .. 0.22"
     assert co.element_name("g_sensitivity", (0, 2)) == "g-sensitivity G[x,z]"
     label, f = co.element_unit("accel", "bias", (1,))
