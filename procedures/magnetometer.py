@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from workbench import units
 from workbench.analysis.mag_free import calibrate_free, hand_steps
 from workbench.analysis.mag_select import METHODS
 from workbench.analysis.magnetometer import calibrate, points_from_session, triad_calibration
@@ -100,7 +99,7 @@ def analyze(session: Session, **options) -> ProcedureResult:
     calset = CalibrationSet(unit=session.unit, triads={"mag": triad_calibration(fit)},
                             notes={NAME: {"method": fit.method, "reason": cal.choice.reason}})
     return ProcedureResult(NAME, result=cal.to_dict(), calibration=calset, payload=cal,
-                           summary=summary_lines(cal), warnings=list(cal.warnings))
+                           summary=cal.summary(), warnings=list(cal.warnings))
 
 
 def _igrf(session: Session):
@@ -115,41 +114,6 @@ def _igrf(session: Session):
         date = datetime.now(UTC).replace(tzinfo=None)
     s = session.site
     return igrf_field(s.latitude_deg, s.longitude_deg, s.height_m, date)
-
-
-def summary_lines(cal) -> list[str]:
-    """Lines for people, in lab units (µT, %, °)."""
-    fit = cal.fit
-
-    off = fit.soft_iron - np.eye(3)
-    finite = fit.soft_iron_sigma[np.isfinite(fit.soft_iron_sigma)]
-    max_sig = float(finite.max()) if finite.size else float("nan")
-    if fit.scale_fixed_by == "reference":
-        norm = f"field norm: {units.fmt(fit.field_norm_ut, 'uT', 4)} (given: fixes the scale of I+M)"
-    else:
-        norm = f"field norm: {units.pm(fit.field_norm_ut, fit.field_norm_sigma, 'uT', 4)} (scale fixed by {fit.scale_fixed_by})"
-    lines = [f"method: {fit.method} ({cal.choice.reason})",
-             "hard iron: " + ", ".join(f"{a} {units.pm(v, s, 'uT', 3)}" for a, v, s in zip("xyz", fit.bias, fit.bias_sigma)),
-             f"soft iron: largest |I+M - I| element {np.abs(off).max() * 100:.3g} %, "
-             f"largest sigma {units.fmt(max_sig, '%', 2)}",
-             norm,
-             f"coverage {cal.quality.coverage:.0%} of the sphere, field-norm residual RMS "
-             f"{units.fmt(cal.quality.norm_residual_rms_ut, 'uT', 3)}"]
-    if fit.dip is not None:
-        lines.append(f"dip: {units.pm(fit.dip, fit.dip_sigma, 'deg', 5)}")
-    if fit.declination is not None:
-        lines.append(f"declination from the reference x axis: {units.pm(fit.declination, fit.declination_sigma, 'deg', 4)}")
-    if fit.alignment is not None:
-        lines.append("IMU-to-mag rotation: " + ", ".join(
-            f"{a} {units.pm(v, s, 'mrad', 3)}" for a, v, s in zip("xyz", fit.alignment, fit.alignment_sigma)))
-    if cal.heading is not None:
-        base = (f", plain algebraic fit {np.degrees(cal.baseline_heading.rms):.3g}°"
-                if cal.baseline_heading is not None else "")
-        lines.append(f"heading error vs table (tilt from {cal.heading.tilt_source}): "
-                     f"RMS {np.degrees(cal.heading.rms):.3g}° (uncalibrated {np.degrees(cal.raw_heading.rms):.3g}°{base})")
-    if cal.free_quality is not None:
-        lines += cal.free_quality.lines(fit.method)
-    return lines
 
 
 def figures(result: ProcedureResult) -> dict:

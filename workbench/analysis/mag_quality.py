@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from workbench.analysis.mag_fit import FIELD_RANGE_UT, MagFit
+from workbench.json_values import json_value
 
 COVERAGE_FOR_ELLIPSOID = 0.5  # fraction of the sphere an unaided 9-parameter ellipsoid needs
 FLAT_LIMIT_UT = 2.0  # µT, thickness below which the cloud counts as planar (±5° of tilt gives ~1.4 µT)
@@ -60,9 +61,11 @@ class Quality:
     warnings: tuple[str, ...]
 
     def to_dict(self) -> dict:
+        """JSON-ready (µT, gravity spread in °; a figure not observed, e.g. the norm residual of a 2D fit, None)."""
         return {"coverage": self.coverage, "thickness_ut": self.thickness_ut,
-                "gravity_spread_deg": None if self.gravity_spread is None else float(np.degrees(self.gravity_spread)),
-                "norm_residual_rms_ut": self.norm_residual_rms_ut, "norm_residual_max_ut": self.norm_residual_max_ut,
+                "gravity_spread_deg": None if self.gravity_spread is None else json_value(np.degrees(self.gravity_spread)),
+                "norm_residual_rms_ut": json_value(self.norm_residual_rms_ut),
+                "norm_residual_max_ut": json_value(self.norm_residual_max_ut),
                 "reference_norm_ut": self.reference_norm_ut, "warnings": list(self.warnings)}
 
 

@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from workbench import units
 from workbench.analysis import mag_attitude, mag_ellipsoid, mag_fit2d, mag_quality, mag_reference, mag_select, mag_spikes
 from workbench.analysis.mag_fit import FIELD_RANGE_UT, MagFit
 from workbench.analysis.mag_heading import HeadingEvaluation, evaluate_heading
@@ -74,7 +75,9 @@ class MagPoints:
 @dataclass(frozen=True)
 class MagCalibration:
     """Everything :func:`calibrate` found: the fit, why it was chosen, quality, heading error (calibrated,
-    raw = uncalibrated, and with the plain algebraic baseline fit), the points."""
+    raw = uncalibrated, and with the plain algebraic baseline fit), the points.
+
+    Follows :class:`workbench.result.AnalysisResult`: :meth:`to_dict` (SI) and :meth:`summary` (lab units)."""
 
     fit: MagFit
     choice: mag_select.Choice
@@ -99,6 +102,45 @@ class MagCalibration:
                 "reference_field": None if self.reference is None else self.reference.to_dict(),
                 "free_quality": None if self.free_quality is None else self.free_quality.to_dict(),
                 "n_points": len(self.points), "warnings": list(self.warnings)}
+
+    def summary(self) -> list[str]:
+        """Lines for people, in lab units: method and reason, hard iron µT, soft iron %, field norm µT,
+        coverage and norm residual, dip and declination °, IMU-to-mag rotation mrad, heading error °,
+        and the truth-free figures of a hand-held fit."""
+        fit = self.fit
+        off = fit.soft_iron - np.eye(3)
+        finite = fit.soft_iron_sigma[np.isfinite(fit.soft_iron_sigma)]
+        max_sig = float(finite.max()) if finite.size else float("nan")
+        if fit.scale_fixed_by == "reference":
+            norm = f"field norm: {units.fmt(fit.field_norm_ut, 'uT', 4)} (given: fixes the scale of I+M)"
+        else:
+            norm = (f"field norm: {units.pm(fit.field_norm_ut, fit.field_norm_sigma, 'uT', 4)} "
+                    f"(scale fixed by {fit.scale_fixed_by})")
+        lines = [f"method: {fit.method} ({self.choice.reason})",
+                 "hard iron: " + ", ".join(f"{a} {units.pm(v, s, 'uT', 3)}"
+                                           for a, v, s in zip("xyz", fit.bias, fit.bias_sigma)),
+                 f"soft iron: largest |I+M - I| element {np.abs(off).max() * 100:.3g} %, "
+                 f"largest sigma {units.fmt(max_sig, '%', 2)}",
+                 norm,
+                 f"coverage {self.quality.coverage:.0%} of the sphere, field-norm residual RMS "
+                 f"{units.fmt(self.quality.norm_residual_rms_ut, 'uT', 3)}"]
+        if fit.dip is not None:
+            lines.append(f"dip: {units.pm(fit.dip, fit.dip_sigma, 'deg', 5)}")
+        if fit.declination is not None:
+            lines.append("declination from the reference x axis: "
+                         f"{units.pm(fit.declination, fit.declination_sigma, 'deg', 4)}")
+        if fit.alignment is not None:
+            lines.append("IMU-to-mag rotation: " + ", ".join(
+                f"{a} {units.pm(v, s, 'mrad', 3)}" for a, v, s in zip("xyz", fit.alignment, fit.alignment_sigma)))
+        if self.heading is not None:
+            base = (f", plain algebraic fit {np.degrees(self.baseline_heading.rms):.3g}°"
+                    if self.baseline_heading is not None else "")
+            lines.append(f"heading error vs table (tilt from {self.heading.tilt_source}): "
+                         f"RMS {np.degrees(self.heading.rms):.3g}° "
+                         f"(uncalibrated {np.degrees(self.raw_heading.rms):.3g}°{base})")
+        if self.free_quality is not None:
+            lines += self.free_quality.lines(fit.method)
+        return lines
 
 
 def points_from_session(session: Session, block_deg: float = 1.0, reject_spikes: bool = True) -> MagPoints:
