@@ -55,6 +55,7 @@ from workbench.earth import EARTH_RATE, normal_gravity, radii
 from workbench.nav.land_ins_model import (  # noqa: F401  (re-exported: the model's public names)
     A_, BA, BG, BW, LA, N_STATES, P_, SA, SG, STATE_COUNTS, V_, GradeErrors, LandInsConfig, discretise,
     error_dynamics, grade_errors, nhc_jacobian, scale_columns)
+from workbench.nav import nav_results
 from workbench.nav.strapdown import sequential_update, skew
 
 
@@ -206,6 +207,19 @@ class LandInsResult:
     notes: list = field(default_factory=list)
     gyro_scale: np.ndarray | None = None
     accel_scale: np.ndarray | None = None
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """One-line notes of the run (the result protocol's ``warnings``)."""
+        return tuple(self.notes)
+
+    def to_dict(self) -> dict:
+        """The end state, JSON-ready, SI (:func:`workbench.nav.nav_results.land_ins_dict`)."""
+        return nav_results.land_ins_dict(self)
+
+    def summary(self) -> list[str]:
+        """Lines for people in lab units (:func:`workbench.nav.nav_results.land_ins_summary`)."""
+        return nav_results.land_ins_summary(self)
 
 
 def _c_bp(boresight: np.ndarray) -> np.ndarray:

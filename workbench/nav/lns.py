@@ -45,6 +45,7 @@ from workbench.angles import wrap_pi as _wrap
 from workbench.earth import EARTH_RATE, normal_gravity, radii
 from workbench.errors import AnalysisError
 from workbench.nav.compensate import ImuSamples, ProcessNoise
+from workbench.nav import nav_results
 
 
 @dataclass(frozen=True)
@@ -106,6 +107,19 @@ class LnsResult:
     resets: list = field(default_factory=list)
     t_heading: float | None = None
     notes: list = field(default_factory=list)
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """One-line notes of the run (the result protocol's ``warnings``)."""
+        return tuple(self.notes)
+
+    def to_dict(self) -> dict:
+        """The end state, JSON-ready, SI (:func:`workbench.nav.nav_results.lns_dict`)."""
+        return nav_results.lns_dict(self)
+
+    def summary(self) -> list[str]:
+        """Lines for people in lab units (:func:`workbench.nav.nav_results.lns_summary`)."""
+        return nav_results.lns_summary(self)
 
 
 def _course_over_ground(gps: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:

@@ -48,6 +48,7 @@ from scipy.spatial.transform import Rotation
 from workbench.earth import earth_rate_ned, gravity_ned
 from workbench.errors import AnalysisError
 from workbench.nav.compensate import ImuSamples, ProcessNoise
+from workbench.nav import nav_results
 from workbench.nav.strapdown import (BlockPropagator, coarse_level, euler_rph, from_rph, sequential_update, skew,
                                      van_loan, with_previous)
 
@@ -141,6 +142,19 @@ class ZuptResult:
     t_start: float
     measurements: tuple[str, ...]
     drift_noise: tuple[float, float]
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """One-line notes of the run (the result protocol's ``warnings``)."""
+        return ()
+
+    def to_dict(self) -> dict:
+        """The end state, JSON-ready, SI (:func:`workbench.nav.nav_results.zupt_dict`)."""
+        return nav_results.zupt_dict(self)
+
+    def summary(self) -> list[str]:
+        """Lines for people in lab units (:func:`workbench.nav.nav_results.zupt_summary`)."""
+        return nav_results.zupt_summary(self)
 
     def convergence_time(self, velocity_tol: float | None = None, attitude_tol: float | None = None) -> float | None:
         """Time (s from the EKF start) after which the free mechanisation stays at rest.
