@@ -120,9 +120,7 @@ def gate(cal: CalibrationSet, session=None, result: Mapping | None = None, force
     forced, so that an export sees what the store was told.
     """
     failures = check(cal, session, result)
-    recorded = [str(x) for x in (cal.notes.get("plausibility") or {}).get("failed", [])] \
-        if isinstance(cal.notes.get("plausibility"), Mapping) else []
-    texts = list(dict.fromkeys([*recorded, *(f.text for f in failures)]))
+    texts = list(dict.fromkeys([*forced_failures(cal), *(f.text for f in failures)]))
     if not texts:
         return cal
     if not force:
