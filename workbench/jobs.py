@@ -127,8 +127,9 @@ def record_procedure(proc: ModuleType, spec, truth, cfg: RigConfig, seed: int, o
                              f"grade {spec.name} has {', '.join(spec.triads)}")
     seq_options, analysis_options = split(proc, options)
     sequence = proc.sequence(spec, **validate(proc, seq_options, "sequence"))
-    rig_given = {k: v for k, v in dict(options or {}).items() if k in rig_options(proc, options).given}
-    rig = open_rig(cfg, truth, seed, imperfections=sim_imperfections(spec, rig_options(proc, options)))
+    rig_opts = rig_options(proc, options)
+    rig_given = {k: v for k, v in dict(options or {}).items() if k in rig_opts.given}
+    rig = open_rig(cfg, truth, seed, imperfections=sim_imperfections(spec, rig_opts))
     # the analysis options given with the recording travel in the manifest, for a resumed run
     rec = start(sequence, rig, Unit(truth.serial, truth.model), proc.NAME, out_dir,
                 extra={"seed": int(seed), "grade": spec.name, "rig_config": str(cfg.path or cfg.name),
