@@ -14,13 +14,12 @@ only on its arguments, so the files are the same as in order in one process. On 
 
 from __future__ import annotations
 
-import resource
 import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from workbench.workers import Workers, usable_workers
+from workbench.workers import Workers, usable_workers, usage_since
 
 SPLIT_FIGURES = 3  # a procedure with this many figures or more has them saved by two workers
 
@@ -53,11 +52,6 @@ class Done:
     usage: dict[int, dict[str, dict]] = field(default_factory=dict)
 
 
-def _usage(wall: float, cpu: float) -> dict:
-    return {"wall_s": time.perf_counter() - wall, "cpu_s": time.process_time() - cpu,
-            "peak_rss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024}
-
-
 def run_plan(plan, progress_for: Callable[[str], Callable | None] | None = None, workers: int | None = None) -> Done:
     """Record, analyse and draw every procedure of ``plan``; ``workers`` processes (default: usable CPUs)."""
     n = len(plan.procs)
@@ -74,16 +68,16 @@ def _in_order(plan, progress_for) -> Done:
         progress = progress_for(plan.name(k)) if progress_for else None
         wall, cpu = time.perf_counter(), time.process_time()
         session = plan.record(k, progress)
-        done.usage[k]["record"] = _usage(wall, cpu)
+        done.usage[k]["record"] = usage_since(wall, cpu)
         wall, cpu = time.perf_counter(), time.process_time()
         done.options[k] = plan.analysis_options(k, done.results[:k])
         done.results[k] = plan.analyse(k, session, done.options[k])
         done.sessions[k] = SessionInfo.of(session)
-        done.usage[k]["analyse"] = _usage(wall, cpu)
+        done.usage[k]["analyse"] = usage_since(wall, cpu)
         del session
         wall, cpu = time.perf_counter(), time.process_time()
         plan.save(k, plan.draw(k, done.results[k]))
-        done.usage[k]["figures"] = _usage(wall, cpu)
+        done.usage[k]["figures"] = usage_since(wall, cpu)
     return done
 
 

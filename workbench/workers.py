@@ -49,6 +49,13 @@ def usable_workers(jobs: int) -> int:
     return max(1, min(n, jobs))
 
 
+def usage_since(wall: float, cpu: float) -> dict:
+    """Wall and CPU seconds since ``time.perf_counter()`` = ``wall`` and ``time.process_time()`` = ``cpu``,
+    and this process's peak resident memory (bytes) so far."""
+    return {"wall_s": time.perf_counter() - wall, "cpu_s": time.process_time() - cpu,
+            "peak_rss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024}
+
+
 def _portable(exc: BaseException) -> BaseException:
     """``exc`` if it survives pickling, else a WorkbenchError with its one-line message."""
     try:
@@ -97,9 +104,7 @@ def _jobs(wid: int, inbox, outbox, handler: Handler) -> None:
             if not isinstance(exc, Exception):  # Ctrl-C, exit: this worker stops
                 return
             continue
-        usage = {"wall_s": time.perf_counter() - wall, "cpu_s": time.process_time() - cpu,
-                 "peak_rss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024}
-        outbox.put(("done", wid, key, (value, usage)))
+        outbox.put(("done", wid, key, (value, usage_since(wall, cpu))))
 
 
 class Workers:
