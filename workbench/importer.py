@@ -105,7 +105,7 @@ def _read_streams(prof: Mapping, profile_path: Path, data: Path) -> dict[str, St
     clocks: dict = {}  # arrival-clock fits by stamps, shared by the streams of one read
     for name, spec in stream_specs(prof).items():
         if name == SINGLE and "streams" not in prof:
-            if data.is_dir() and (prof.get("reader") or {}).get("type") != "rosbag":  # a ROS 2 bag is a folder
+            if data.is_dir() and reader.get("type") != "rosbag":  # a ROS 2 bag is a folder
                 raise WorkbenchError(f"{data}: is a folder; this profile ({profile_path.name}) reads one file")
             path, where = data, str(data)
         else:
@@ -201,7 +201,8 @@ def _path_sha256(path: Path) -> str:
 
 def _source_sha(streams: Mapping[str, Stream]) -> str:
     """SHA-256 of the source file (one stream) or of the streams' names and file digests."""
-    digests = {name: _path_sha256(Path(s.source)) for name, s in streams.items()}
+    by_source = {s.source: _path_sha256(Path(s.source)) for s in streams.values()}  # a shared file hashed once
+    digests = {name: by_source[s.source] for name, s in streams.items()}
     if len(set(digests.values())) == 1:  # one file (a log holding every stream)
         return next(iter(digests.values()))
     import hashlib
