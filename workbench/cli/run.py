@@ -98,13 +98,13 @@ def _print_result(result: ProcedureResult, out_dir: Path | None) -> None:
         out.print(line, highlight=False)
     for w in result.warnings:
         out.print(styled("warning:", "yellow", f" {w}"), highlight=False)
-    _print_forced(result.calibration)
+    print_forced(result.calibration)
     if out_dir is not None:
         out.print(f"results in {out_dir} (result.json{', calibration.json' if result.calibration else ''}, figures/)",
                   soft_wrap=True)  # a path is never broken across lines
 
 
-def _print_forced(cal) -> None:
+def print_forced(cal) -> None:
     """Say so when a calibration was kept past failed plausibility checks (``--force``)."""
     from workbench.plausibility import forced_failures
 

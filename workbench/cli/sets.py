@@ -87,11 +87,9 @@ def show(ref: str = typer.Argument(..., help="Set id (or prefix), or a calibrati
     out.print(f"unit {cal.unit.serial} ({cal.unit.model}), created {cal.created}")
     out.print(f"procedures: {', '.join(cal.provenance.procedures) or '—'}; sessions: "
               f"{len(cal.provenance.sessions)}; software {cal.provenance.software_version}")
-    from workbench.plausibility import forced_failures
+    from workbench.cli.run import print_forced
 
-    for text in forced_failures(cal):
-        out.print(styled("forced past a failed plausibility check:", "bold red", f" {text}"), highlight=False,
-                  soft_wrap=True)
+    print_forced(cal)
     for triad in cal.triads:
         out.print(_triad_table(cal, triad))
         ref_text = thermal_reference(cal, triad)
