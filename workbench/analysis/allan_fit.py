@@ -279,10 +279,11 @@ def fit_channel(tau: np.ndarray, dev: np.ndarray, edf: np.ndarray, hi: np.ndarra
     # the quantization shape depends on N^2 / Q^2: every profile refits it with the terms
     shaped = (lambda th: basis(tau, th[1] / th[0] if th[0] > 0 and th[1] > 0 else np.inf)) \
         if np.isfinite(ratio) else None
+    plain = basis(tau)  # the IEEE 952 basis (h = 1) of the search starts
     intervals = []
     for k in range(5):
         # the smallest single-point 97.5 % bound: a start for the search of the upper limit
-        cap = float(np.min(hi ** 2 / basis(tau)[:, k]))
+        cap = float(np.min(hi ** 2 / plain[:, k]))
         intervals.append(profile_interval(a, avar, edf, k, full, d_min, cap, design_of=shaped))
     cols = _select(a, avar, edf, full)
     theta = np.where(np.isin(np.arange(5), cols), full, 0.0)
