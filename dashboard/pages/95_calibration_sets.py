@@ -67,24 +67,19 @@ def _highlight(value: float) -> str:
 def certificate_section(db, calset, version: int, stem: str) -> None:
     """Render the set's certificate on request (from the store only, as ``workbench certificate``):
     HTML and, where Chromium is installed, PDF downloads. Kept for the set and its approval state."""
-    from workbench.fleet.certificate import certificate_number, print_pdf, render_certificate
+    from workbench.fleet.certificate import certificate_number, write_certificate
 
     key = (calset.id, (db.approval(calset.id) or {}).get("approved_at"))
     if st.button("Render the certificate", key="cal.cert"):
-        import shutil
         import tempfile
         from pathlib import Path
 
         try:
-            with st.spinner("Rendering the certificate (HTML, then PDF with Chromium) ..."):
-                html = render_certificate(calset, db)
-                pdf = None
-                chromium = shutil.which("chromium") or shutil.which("chromium-browser")
-                if chromium:
-                    with tempfile.TemporaryDirectory(prefix="workbench-cert-") as tmp:
-                        page = Path(tmp) / "certificate.html"
-                        page.write_text(html)
-                        pdf = print_pdf(page, page.with_suffix(".pdf"), chromium).read_bytes()
+            with st.spinner("Rendering the certificate (HTML, then PDF with Chromium) ..."), \
+                    tempfile.TemporaryDirectory(prefix="workbench-cert-") as tmp:
+                written = write_certificate(calset, db, Path(tmp) / "certificate.html")  # PDF where Chromium is
+                html = written[0].read_text()
+                pdf = written[1].read_bytes() if len(written) > 1 else None
             st.session_state["cal.cert.doc"] = (key, html, pdf)
         except WorkbenchError as exc:
             ui.show_error(exc, "certificate")
