@@ -32,24 +32,26 @@ def confined_folder(typed: str, roots: list[Path]) -> Path:
     return path
 
 
-def runs_dir() -> Path:
-    """Where dashboard runs write their folders: ``WORKBENCH_RUNS``, else next to a SQLite store, else ./runs."""
+def _store_dir() -> Path | None:
+    """The folder of the SQLite store named by ``WORKBENCH_DB`` (None for another database or ``:memory:``)."""
     from workbench.store import default_url
 
+    url = default_url()
+    if url.startswith("sqlite:///") and url != "sqlite:///:memory:":
+        return Path(url.removeprefix("sqlite:///")).resolve().parent
+    return None
+
+
+def runs_dir() -> Path:
+    """Where dashboard runs write their folders: ``WORKBENCH_RUNS``, else next to a SQLite store, else ./runs."""
     env = os.environ.get("WORKBENCH_RUNS")
     if env:
         return Path(env)
-    url = default_url()
-    if url.startswith("sqlite:///") and url != "sqlite:///:memory:":
-        return Path(url.removeprefix("sqlite:///")).resolve().parent / "runs"
-    return Path("runs").resolve()
+    store = _store_dir()
+    return store / "runs" if store is not None else Path("runs").resolve()
 
 
 def default_roots() -> list[Path]:
     """Folders a typed session folder may lie in by default: the runs folder, a SQLite store's folder, the cwd."""
-    from workbench.store import default_url
-
-    url = default_url()
-    store = [Path(url.removeprefix("sqlite:///")).resolve().parent] \
-        if url.startswith("sqlite:///") and url != "sqlite:///:memory:" else []
-    return [runs_dir(), *store, Path.cwd()]
+    store = _store_dir()
+    return [runs_dir(), *([store] if store is not None else []), Path.cwd()]
