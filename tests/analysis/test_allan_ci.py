@@ -12,6 +12,7 @@ from scipy.signal import fftconvolve
 
 from workbench.analysis.allan import deviation, phase
 from workbench.analysis.allan_ci import alpha_from_slope, confidence, edf_greenhall, identify
+from workbench.sim.powerlaw import kasdin_response
 
 
 @pytest.mark.parametrize("d,modified,alphas,ms", [
@@ -35,12 +36,6 @@ def test_edf_close_to_allantools_tables_for_long_sums():
         for m in (64, 512, 4096):
             ref = aci.edf_greenhall(alpha=alpha, d=2, m=m, N=1_000_000, overlapping=True, modified=False)
             assert edf_greenhall(alpha, 2, m, 1_000_000) == pytest.approx(ref, rel=0.07)
-
-
-def _kasdin(n: int, a: float) -> np.ndarray:
-    """Impulse response of the 1/f^a filter (Kasdin 1995): h_k = h_{k-1} (k - 1 + a/2) / k."""
-    k = np.arange(1, n)
-    return np.concatenate(([1.0], np.cumprod((k - 1 + a / 2) / k)))
 
 
 def _true_avar(h: np.ndarray, n: int, ms: np.ndarray) -> np.ndarray:
@@ -69,7 +64,7 @@ def test_ci95_coverage_monte_carlo(a, alpha_true):
     # the correlation between taus), so 93-97 % is a >= 3-sigma acceptance band around 95 %.
     n, records = 4096, 300
     rng = np.random.default_rng(42 + int(a))
-    h = _kasdin(n, a)
+    h = kasdin_response(n, a)  # Kasdin 1995: h_k = h_{k-1} (k - 1 + a/2) / k
     y = fftconvolve(rng.standard_normal((n, records)), h[:, None], axes=0)[:n]
     curve = deviation(y, 1.0, "oadev", "octave")
     ci = confidence(curve, phase(y, 1.0))
