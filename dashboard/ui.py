@@ -68,17 +68,12 @@ def guarded(context: str = "", catch_all: bool = False) -> Iterator[None]:
 
 
 def lab(value_si: Any, unit: str, sigma_si: Any = None, digits: int = 4) -> str:
-    """``value_si`` (± ``sigma_si``) in lab ``unit`` with its label, e.g. ``'0.21 ± 0.01 °/h'``.
+    """``value_si`` (± ``sigma_si``) in lab ``unit`` with its label, e.g. ``'0.21 ± 0.01 °/h'``: the
+    dashboard's spelling of ``units.pm`` (NaN / None value: "not observed"; NaN sigma: "(σ not observed)").
 
-    Units are those of ``workbench.units`` (``deg/h``, ``deg/sqrt(h)``, ``mg``, ``ug/sqrt(Hz)``,
-    ``ppm``, ``mrad``, ...). NaN / None means not observed and is shown as such.
+    Units are those of ``workbench.units`` (``deg/h``, ``deg/sqrt(h)``, ``mg``, ``ug/sqrt(Hz)``, ``ppm``, ...).
     """
-    if value_si is None or not np.isfinite(float(value_si)):
-        return "not observed"
-    if sigma_si is None:
-        return units.fmt(float(value_si), unit, digits)
-    sig = (f"{units.to_unit(float(sigma_si), unit):.2g}" if np.isfinite(float(sigma_si)) else "(σ not observed)")
-    return f"{units.to_unit(float(value_si), unit):.{digits}g} ± {sig} {units.label(unit)}"
+    return units.pm(value_si, sigma_si, unit, digits)
 
 
 def lab_array(values_si: Any, unit: str) -> np.ndarray:
