@@ -5,6 +5,7 @@
   (summary, options, the figures drawn then);
 - :func:`result_picker` — what an analysis page needs: the stored result, re-analysis on request;
 - :func:`analyze_session` — ``procedure.analyze`` of a session folder, cached, storing nothing;
+- :func:`store_analysis` — the same analysis stored (result and calibration set) through the gate, on request;
 - :func:`show_result` / :func:`show_figures` — summary, warnings and figures of a
   :class:`ProcedureResult` or of an output folder.
 """
@@ -158,7 +159,33 @@ def result_picker(procedure: str, key: str = "result") -> ProcedureResult | None
         return None
     st.info(f"{'Re-analysis' if row is not None else 'No stored result for this session: analysis'} of "
             f"{folder.name} with {text} (not stored).")
+    if st.button(f"Store this analysis ({text})", key=f"{key}.store",
+                 help="Stores the result and its calibration set, after the plausibility checks; "
+                      "an implausible set is refused (the CLI's --force keeps it, with the failed check noted)."):
+        if store_analysis(procedure, folder, options):
+            st.session_state.pop(flag, None)  # the page shows the stored result from now on
     return result
+
+
+def store_analysis(procedure: str, folder: Path, options: Mapping | None = None) -> bool:
+    """Store ``procedure``'s analysis of the session in ``folder`` with ``options``: the session record,
+    the result and its calibration set in one transaction, after the plausibility gate
+    (``workbench analyze PROCEDURE FOLDER`` without ``--force``). Nothing is stored on failure,
+    which is shown as one error line; returns whether it was stored."""
+    from workbench.procedure import run_analysis
+    from workbench.session import load_session
+
+    try:
+        with st.spinner(f"Storing the {procedure} analysis of {folder.name} ..."):
+            result = run_analysis(registry.procedure(procedure), load_session(folder), dict(options or {}),
+                                  store=store(), figures=False)
+    except WorkbenchError as exc:
+        show_error(exc, f"storing {procedure} of {folder.name}")
+        return False
+    cal = result.calibration
+    st.success(f"Stored the {procedure} result of {folder.name}"
+               + (f" and calibration set {cal.id}" if cal is not None else "") + ".")
+    return True
 
 
 def show_figures(result: ProcedureResult | Path) -> None:

@@ -480,3 +480,39 @@ def test_result_picker_opens_the_stored_result_and_reanalyses_only_on_request(to
     assert any("gyro x mean" in c.value for c in at.code)
     assert any("(not stored)" in i for i in texts(at, "info"))
     assert len(ui.store().list_results("toy")) == 1  # the re-analysis stored nothing
+
+
+def test_result_picker_stores_an_analysis_on_request(toy_procedure):
+    """The button stores the analysis shown (session record and result) through run_analysis; after it the
+    page shows the stored result instead of analysing again."""
+    from dashboard import ui
+
+    at = AppTest.from_string(ANALYSIS_PAGE, default_timeout=TIMEOUT).run()
+    assert ui.store().list_results("toy") == []
+    button = at.button(key="toy.store")
+    assert button.proto.label == "Store this analysis (the defaults)"
+    button.click().run()
+    assert not at.exception and not at.error
+    rows = ui.store().list_results("toy")
+    assert len(rows) == 1 and rows[0]["result"]["gyro_x_mean"] == pytest.approx(1e-5)
+    assert any("Stored the toy result" in s for s in texts(at, "success"))
+    at.run()
+    assert any("Stored result of" in s for s in texts(at, "success"))  # shown as stored, not re-analysed
+
+
+def test_result_picker_store_failure_stores_nothing(toy_procedure, monkeypatch):
+    """A refusal at storing time (here the plausibility gate's error) is one error line; the store is unchanged."""
+    from dashboard import ui
+    from workbench import procedure
+    from workbench.plausibility import ImplausibleCalibration
+
+    def refuse(*args, **kwargs):
+        raise ImplausibleCalibration("toy refused: gyro bias x = 8.91e+05 °/h exceeds ±1.08e+05 °/h")
+
+    monkeypatch.setattr(procedure, "analysed", refuse)
+    sessions = [r.id for r in ui.store().list_sessions()]
+    at = AppTest.from_string(ANALYSIS_PAGE, default_timeout=TIMEOUT).run()
+    at.button(key="toy.store").click().run()
+    assert not at.exception
+    assert any("exceeds ±1.08e+05 °/h" in e for e in texts(at, "error"))
+    assert ui.store().list_results("toy") == [] and [r.id for r in ui.store().list_sessions()] == sessions
