@@ -15,6 +15,11 @@ sigmas z is N(0, 1): rms z ~ 1 (target <= 1.5 on real recordings, issue 21 item 
 ``--across``: a check that no scaling from a split can make circular: every recording fitted
 whole, z between recordings of the same board for each coefficient both observe.
 
+A sigma part that both halves share by construction (the gyro bias's unobserved g-sensitivity
+``sigma_G |f|``: both halves hold the same orientation, so ``G f`` cancels in their difference) is
+taken out of the split-half z (``COMMON``: the note holding it), and kept in ``--across`` (two
+recordings in different orientations do see it).
+
 Prints one row per coefficient (value in lab units, both halves, z) and the rms per triad and
 over all.
 """
@@ -32,6 +37,8 @@ CUTTABLE = ("static", "free", "soak")
 # coefficients fitted from steps that stay whole in both halves (turns): not independent
 SHARED = {"ferraris": ("gyro.scale_misalignment", "gyro.nonlinearity"),
           "multiposition": (), "magnetometer": ()}
+# (triad, field) -> the set note (procedure, triad, key) holding the part of its sigma common to both halves, SI
+COMMON = {("gyro", "bias"): "bias_sigma_g_sensitivity"}
 
 
 def halves(session):
@@ -63,8 +70,19 @@ def halves(session):
     return a, b
 
 
-def coefficients(cal):
-    """(triad, field, index, value SI, sigma SI) of every observed coefficient of a set."""
+def _common_sigma(cal, triad: str, field: str) -> np.ndarray | None:
+    """The part of ``triad.field``'s sigma a set's notes say both halves of a record share (:data:`COMMON`), SI."""
+    key = COMMON.get((triad, field))
+    for notes in cal.notes.values():
+        value = notes.get(triad, {}).get(key) if key and isinstance(notes, dict) else None
+        if isinstance(value, list):
+            return np.asarray(value, float)
+    return None
+
+
+def coefficients(cal, within: bool = False):
+    """(triad, field, index, value SI, sigma SI) of every observed coefficient of a set; ``within``: the sigma
+    without the part common to both halves of one record (:data:`COMMON`)."""
     out = []
     for triad, tc in cal.triads.items():
         m = tc.model
@@ -74,6 +92,9 @@ def coefficients(cal):
             if arr is None:
                 continue
             sig = tc.sigma_of(name)
+            common = _common_sigma(cal, triad, name) if within else None
+            if common is not None:
+                sig = np.sqrt(np.clip(np.square(sig) - np.square(common), 0.0, None))
             for idx in np.ndindex(np.shape(arr)):
                 if np.isfinite(sig[idx]) and sig[idx] > 0:
                     out.append((triad, name, idx, float(arr[idx]), float(sig[idx])))
@@ -87,8 +108,8 @@ def split_half_z(session, proc, options: dict, shared=()) -> list[tuple]:
     from workbench import units
 
     a, b = halves(session)
-    ca = {(t, f, i): (v, s) for t, f, i, v, s in coefficients(proc.analyze(a, **options).calibration)}
-    cb = {(t, f, i): (v, s) for t, f, i, v, s in coefficients(proc.analyze(b, **options).calibration)}
+    ca = {(t, f, i): (v, s) for t, f, i, v, s in coefficients(proc.analyze(a, **options).calibration, True)}
+    cb = {(t, f, i): (v, s) for t, f, i, v, s in coefficients(proc.analyze(b, **options).calibration, True)}
     rows = []
     for key in ca.keys() & cb.keys():
         triad, field, idx = key

@@ -33,6 +33,7 @@ from workbench.analysis.turntable import fit_accel, fit_gyro_static
 from workbench.calset import CalibrationSet
 from workbench.errors import AnalysisError, ProcedureError
 from workbench.options import Option, check_options, defaults
+from workbench.plausibility import grade_of
 from workbench.procedure import ProcedureResult
 from workbench.sequence import Hold, Sequence, mount_matrix
 from workbench.session import Session
@@ -110,7 +111,9 @@ def _analyze_free(session: Session) -> ProcedureResult:
         fits["accel"] = fit_accel_norm(means, session.site.gravity)
     except AnalysisError as exc:
         warnings.append(f"accelerometer not calibrated: {exc}")
-    fits["gyro"] = fit_gyro_bias(means, session.site.latitude)
+    gyro_spec = getattr(grade_of(session.unit.model), "gyro", None)  # a grade without g-sensitivity has none
+    g_sens = None if gyro_spec is None else (np.zeros(3) if gyro_spec.g_sensitivity is None else gyro_spec.g_sensitivity)
+    fits["gyro"] = fit_gyro_bias(means, session.site.latitude, g_sens)
     calset = CalibrationSet(unit=session.unit, triads={k: f.triad_calibration() for k, f in fits.items()},
                             notes={NAME: {k: dict(f.notes) for k, f in fits.items()}})
     head = [f"free steps: {len(means)} still stretch(es), {sum(m.n for m in means) / session.sample_rate_hz:.1f} s "

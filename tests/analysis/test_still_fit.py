@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import procedures.multiposition as proc
-from workbench.analysis.still_fit import fit_accel_norm, fit_gyro_bias, still_means
+from workbench.analysis.still_fit import G_SENSITIVITY_BOUND, fit_accel_norm, fit_gyro_bias, still_means
 from workbench.errors import AnalysisError
 from workbench.grades import draw_unit, load_spec
 from workbench.sim.handheld import handheld_session
@@ -53,6 +53,30 @@ def test_gyro_bias_matches_truth(held):
     f_mean = (np.array([m.accel for m in means]) * n[:, None]).sum(axis=0) / n.sum()
     expected = u.bias + (u.g_sensitivity @ f_mean if u.g_sensitivity is not None else 0.0)
     assert np.all(np.abs(fit.bias - expected) < 4 * fit.bias_sigma)
+
+
+def test_gyro_bias_sigma_covers_the_unobserved_g_sensitivity():
+    # 20 hand-held units of the grade (60 s, 3-s holds): the bias is compared with the true zero-g bias, so
+    # the unfitted G f_mean (grade spread 0.1 °/s/g per element) must be in its sigma. 60 z-scores: the 1-sigma
+    # coverage is at least 0.683 - 3 sqrt(0.683 * 0.317 / 60) = 0.50 for honest sigmas
+    z = []
+    for seed in range(20):
+        session, truth = handheld_session(draw_unit(SPEC, seed), seed, duration_s=60.0, still_s=3.0,
+                                          temperature_c=25.0)
+        means = still_means(session)
+        fit = fit_gyro_bias(means, session.site.latitude, SPEC.gyro.g_sensitivity)
+        n = np.array([m.n for m in means], float)
+        f_mean = (np.array([m.accel for m in means]) * n[:, None]).sum(axis=0) / n.sum()
+        g_part = np.array(fit.notes["bias_sigma_g_sensitivity"])
+        np.testing.assert_allclose(g_part, SPEC.gyro.g_sensitivity * np.linalg.norm(f_mean))
+        z += list((fit.bias - truth.unit.gyro.bias) / fit.bias_sigma)
+    assert np.mean(np.abs(z) < 1) >= 0.50
+    assert "not observed" in fit.notes["g_sensitivity"]
+    # a board of unknown grade: the consumer MEMS datasheet bound, 0.1 °/s/g at 1 g
+    still = fit_gyro_bias(means[:1], session.site.latitude)
+    np.testing.assert_allclose(still.notes["bias_sigma_g_sensitivity"],
+                               G_SENSITIVITY_BOUND * np.linalg.norm(means[0].accel), rtol=1e-12)
+    assert np.all(still.bias_sigma >= G_SENSITIVITY_BOUND * np.linalg.norm(means[0].accel))
 
 
 def test_procedure_on_free_steps_and_too_few_orientations():

@@ -13,7 +13,11 @@ dropped at both ends). No orientation is known, so:
   (along the measured down direction, ``-Omega_e sin(lat)``); its horizontal part
   (``Omega_e cos(lat)``, heading unknown) goes into the variance. The sigma is the larger of the
   sigma of the mean (white noise, scaled by the samples' own correlation time, :mod:`effective_n`) and the
-  scatter of the stretch means (when there are several).
+  scatter of the stretch means (when there are several), with the g-sensitivity ``G`` (rate per
+  specific force) in quadrature: no ``G`` is fitted (the stretches' orientations are unknown, and
+  one orientation cannot separate ``G f`` from the bias), so the mean rate holds ``b + G f_mean``
+  and the bias valid in any orientation is uncertain by ``sigma_G |f_mean|`` per axis, ``sigma_G``
+  the grade's g-sensitivity spread or, for a board of unknown grade, :data:`G_SENSITIVITY_BOUND`.
 
 Both return :class:`workbench.analysis.turntable.TriadFit` (residual table per stretch), so the
 multi-position procedure reports them as it does its table fits.
@@ -31,12 +35,16 @@ from workbench.analysis import stationarity
 from workbench.analysis.effective_n import tau_int
 from workbench.analysis.turntable import TriadFit
 from workbench.earth import EARTH_RATE
+from workbench.units import G0, from_unit, to_unit
 from workbench.errors import AnalysisError
 from workbench.session import Session
 
 _NAN3 = np.full(3, np.nan)
 MIN_FULL, MIN_DIAG = 10, 6  # positions for the 9- and the 6-parameter norm fit
 MAX_BIAS_SIGMA, MAX_SCALE_SIGMA = 0.5, 0.05  # m/s^2 and dimensionless: beyond, the positions do not observe the fit
+# rad/s per m/s^2, 1-sigma g-sensitivity of a gyro of unknown grade: a consumer MEMS gyro's "linear acceleration
+# sensitivity" (MPU-6000/6050 product specification rev. 3.4, table 6.1: 0.1 °/s/g, the ITG-3200 class alike)
+G_SENSITIVITY_BOUND = float(from_unit(0.1, "deg/s/g"))
 
 
 @dataclass(frozen=True)
@@ -166,10 +174,12 @@ def fit_accel_norm(means: list[StillMean], gravity: float) -> TriadFit:
                     dof=max(dof, 0), notes=notes)
 
 
-def fit_gyro_bias(means: list[StillMean], latitude: float) -> TriadFit:
-    """Gyro bias (3,) rad/s from the still stretches, Earth rate handled as in the module docstring.
+def fit_gyro_bias(means: list[StillMean], latitude: float, g_sensitivity: np.ndarray | float | None = None) -> TriadFit:
+    """Gyro bias (3,) rad/s from the still stretches, Earth rate and g-sensitivity handled as in the module docstring.
 
     ``latitude`` rad (the site's). The down direction of each stretch is its mean specific force's.
+    ``g_sensitivity`` rad/s per m/s^2: the 1-sigma spread of each element of ``G`` per row (3,) or for
+    all (the grade's ``TriadSpec.g_sensitivity``); None: :data:`G_SENSITIVITY_BOUND`.
     """
     if not means:
         raise AnalysisError("gyro bias: no still stretch in the free steps (hold the unit still for a second or more)")
@@ -185,12 +195,22 @@ def fit_gyro_bias(means: list[StillMean], latitude: float) -> TriadFit:
     horizontal = EARTH_RATE * np.cos(latitude) * np.sqrt((1 - (down**2).mean(axis=0)) / 2)
     k = len(means)
     scatter = corrected.std(axis=0, ddof=1) / np.sqrt(k) if k > 1 else np.zeros(3)
-    sigma = np.sqrt(np.maximum(white, scatter) ** 2 + horizontal**2 / k)
+    f_mean = (np.array([m.accel for m in means]) * n[:, None]).sum(axis=0) / n.sum()
+    s_g = np.broadcast_to(np.asarray(G_SENSITIVITY_BOUND if g_sensitivity is None else g_sensitivity, float), (3,))
+    g_term = s_g * np.linalg.norm(f_mean)
+    sigma = np.sqrt(np.maximum(white, scatter) ** 2 + horizontal**2 / k + g_term**2)
     table = _residual_table(means, vertical, w - vertical, corrected - bias,
                             np.array([m.gyro_sigma for m in means]),
                             np.full(k, np.nan), np.full(k, np.nan))
+    source = "the unit's grade" if g_sensitivity is not None else "a consumer MEMS gyro's datasheet bound"
     notes = {"earth_rate": "vertical part removed along the measured down direction; horizontal part "
                            "(heading unknown) in the sigma",
-             "method": f"mean of {k} still stretch(es), {int(n.sum())} samples"}
+             "g_sensitivity": f"not observed (no orientation known, not fitted): the bias holds G f at the "
+                              f"stretches' mean specific force; its sigma carries "
+                              f"{to_unit(s_g.max(), 'deg/s/g'):.3g} °/s/g x {np.linalg.norm(f_mean) / G0:.2f} g "
+                              f"({source})",
+             "method": f"mean of {k} still stretch(es), {int(n.sum())} samples",
+             # rad/s, the g-sensitivity part of bias_sigma: common to every record held in the same orientations
+             "bias_sigma_g_sensitivity": g_term.tolist()}
     return TriadFit("gyro", bias, np.zeros((3, 3)), np.zeros(3), None, sigma, np.full((3, 3), np.nan),
                     _NAN3.copy(), None, residuals=table, dof=max(k - 1, 0), notes=notes)

@@ -67,4 +67,6 @@ def triad_summary(fit: TriadFit, full_scale: float | None = None) -> list[str]:
     for k, v in fit.notes.items():
         if k == "earth_rate":
             lines.append(f"{t} Earth rate: {v}")
+        elif k == "g_sensitivity":
+            lines.append(f"{t} g-sensitivity: {v}")
     return lines
