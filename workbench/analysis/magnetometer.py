@@ -261,7 +261,8 @@ def fit_method(method: str, points: MagPoints, down: np.ndarray | None, field_no
 def calibrate(points: MagPoints, method: str = "auto", robust: bool | str = False, field_norm_ut: float | None = None,
               declination: float | None = None, baseline: bool = True, accel_model: TriadModel | None = None,
               reference: ReferenceField | None = None, source: str = "magnetometer data",
-              data: str | None = None, choice: mag_select.Choice | None = None) -> MagCalibration:
+              data: str | None = None, choice: mag_select.Choice | None = None,
+              accel_compensated: bool = False) -> MagCalibration:
     """Calibrate a magnetometer from ``points``.
 
     Parameters
@@ -275,7 +276,8 @@ def calibrate(points: MagPoints, method: str = "auto", robust: bool | str = Fals
         the attitude fit's estimate or, for other methods, the mean offset
     baseline : also fit the plain algebraic ellipsoid (3D data) for comparison
     accel_model : the accelerometer's calibration; its compensation is applied to ``points.accel``
-        first (an uncalibrated accelerometer's bias tilts the gravity direction: 20 mg ~ 1.1°)
+        first (an uncalibrated accelerometer's bias tilts the gravity direction: 20 mg ~ 1.1°), unless
+        ``accel_compensated`` (the caller applied it already, e.g. before tracking gravity through a motion)
     reference : a geomagnetic model's field at the site (:mod:`mag_reference`): the fitted norm
         (when estimated) and dip are checked against it (warnings)
     data : a phrase naming the data the points come from; it leads the reason of the choice
@@ -290,7 +292,7 @@ def calibrate(points: MagPoints, method: str = "auto", robust: bool | str = Fals
     check_points(points.mag, method if method != "auto" else "2d", source)
     if points.accel is not None and not np.isfinite(points.accel).all():
         raise AnalysisError(f"{source}: NaN or infinite accelerometer value")
-    if accel_model is not None and points.accel is not None:
+    if accel_model is not None and points.accel is not None and not accel_compensated:
         points = replace(points, accel=accel_model.compensate(points.accel))
     down = _down(points)
     flat = mag_quality.thickness(points.mag)
