@@ -25,14 +25,13 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from sqlalchemy import create_engine, event, func, inspect, select
-from sqlalchemy.engine import Engine
+from sqlalchemy import create_engine, event, func, insert, inspect, select, update
+from sqlalchemy.engine import Connection, Engine
 from sqlalchemy.exc import IntegrityError, OperationalError, SQLAlchemyError
-from sqlalchemy.orm import Session, sessionmaker
 
 from workbench.errors import StoreError
-from workbench.store_schema import (HEAD_REVISION, MIGRATIONS, VERSION_TABLE, ApprovalRow,  # noqa: F401 (re-exported)
-                                    Base, ResultRow, SessionRow, SetRow, UnitRow, schema_revision, upgrade)
+from workbench.store_schema import (APPROVALS, HEAD_REVISION, METADATA, MIGRATIONS, RESULTS,  # noqa: F401 (re-exported)
+                                    SESSIONS, SETS, UNITS, VERSION_TABLE, schema_revision, upgrade)
 
 if TYPE_CHECKING:  # the calibration-set format (numpy, jsonschema) loads when a set is read
     from workbench.calset import CalibrationSet
@@ -76,15 +75,35 @@ class SetInfo:
     approved_by: str | None
 
 
+@dataclass(frozen=True)
+class SessionInfo:
+    """One recorded session: id, unit serial, procedure, folder, created (ISO-8601 UTC), samples
+    SHA-256, step count and whether it is complete."""
+
+    id: str
+    serial: str
+    procedure: str
+    path: str
+    created: str
+    sha256: str
+    n_steps: int
+    complete: bool
+
+
 def _now() -> str:
     return datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
 
 
-def _set_from_row(row: SetRow) -> CalibrationSet:
-    """The calibration set a stored row holds."""
+def _set_from_row(set_id: str, body: str) -> CalibrationSet:
+    """The calibration set a stored row (id, canonical JSON body) holds."""
     from workbench.calset import CalibrationSet
 
-    return CalibrationSet.from_json(row.body, source=f"store set {row.id}")
+    return CalibrationSet.from_json(body, source=f"store set {set_id}")
+
+
+def _next_version(db: Connection, serial: str) -> int:
+    """The version number the next set of unit ``serial`` gets (1 for its first)."""
+    return (db.scalar(select(func.max(SETS.c.version)).where(SETS.c.serial == serial)) or 0) + 1
 
 
 def _sqlite_immediate(engine: Engine) -> None:
@@ -115,7 +134,6 @@ class Store:
             if db and db != ":memory:" and not Path(db).parent.resolve().is_dir():
                 raise StoreError(f"store {self.url}: folder {Path(db).parent} does not exist")
             _sqlite_immediate(self.engine)
-        self._sessions = sessionmaker(self.engine, expire_on_commit=False)
         self._batch = threading.local()  # .db: the open transaction of batch() in this thread
         if create:
             self._create_schema()
@@ -134,7 +152,7 @@ class Store:
                              ) from None
 
     @contextmanager
-    def transaction(self) -> Iterator[Session]:
+    def transaction(self) -> Iterator[Connection]:
         """One all-or-nothing transaction; errors become StoreError naming the store.
 
         Inside :meth:`batch` (same thread) this is the batch's transaction.
@@ -142,16 +160,13 @@ class Store:
         if self._in_batch():
             yield self._batch.db
             return
-        db = self._sessions()
         try:
-            with db.begin():
+            with self.engine.begin() as db:
                 yield db
         except IntegrityError:
             raise
         except OperationalError as exc:
             raise StoreError(f"store {self.url}: {redact(str(exc.orig)[:160], self._real)}") from None
-        finally:
-            db.close()
 
     @contextmanager
     def batch(self) -> Iterator[None]:
@@ -195,12 +210,20 @@ class Store:
     def _in_batch(self) -> bool:
         return getattr(self._batch, "db", None) is not None
 
-    def _ensure_unit(self, db: Session, serial: str, model: str) -> None:
-        row = db.get(UnitRow, serial)
-        if row is None:
-            db.add(UnitRow(serial=serial, model=model, created=_now()))
-        elif model and not row.model:
-            row.model = model
+    def _ensure_unit(self, db: Connection, serial: str, model: str) -> None:
+        known = db.execute(select(UNITS.c.model).where(UNITS.c.serial == serial)).first()
+        if known is None:
+            db.execute(insert(UNITS).values(serial=serial, model=model, created=_now()))
+        elif model and not known.model:
+            db.execute(update(UNITS).where(UNITS.c.serial == serial).values(model=model))
+
+    def _insert_set(self, db: Connection, calset: CalibrationSet, body: str, sha256: str) -> int:
+        """Insert ``calset`` (its canonical JSON ``body``) as its unit's next version; returns the version."""
+        version = _next_version(db, calset.unit.serial)
+        db.execute(insert(SETS).values(id=calset.id, serial=calset.unit.serial, version=version,
+                                       created=calset.created, procedures=",".join(calset.provenance.procedures),
+                                       sha256=sha256, body=body))
+        return version
 
     # -- calibration sets ------------------------------------------------------------
     def add_set(self, calset: CalibrationSet, retries: int = 20) -> int:
@@ -209,14 +232,10 @@ class Store:
         for attempt in range(retries):
             try:
                 with self.transaction() as db:
-                    if db.get(SetRow, calset.id) is not None:
+                    if db.scalar(select(SETS.c.id).where(SETS.c.id == calset.id)) is not None:
                         raise StoreError(f"store {self.url}: set {calset.id} is already stored (sets are immutable)")
                     self._ensure_unit(db, calset.unit.serial, calset.unit.model)
-                    version = (db.scalar(select(func.max(SetRow.version)).where(SetRow.serial == calset.unit.serial))
-                               or 0) + 1
-                    db.add(SetRow(id=calset.id, serial=calset.unit.serial, version=version, created=calset.created,
-                                  procedures=",".join(calset.provenance.procedures), sha256=calset.sha256(),
-                                  body=body))
+                    version = self._insert_set(db, calset, body, calset.sha256())
                 return version
             except IntegrityError:
                 if self._in_batch():
@@ -227,32 +246,34 @@ class Store:
     def get_set(self, set_id: str) -> CalibrationSet:
         """The stored set ``set_id`` (a unique prefix of the id is accepted)."""
         with self.transaction() as db:
-            row = db.get(SetRow, set_id)
+            row = db.execute(select(SETS.c.id, SETS.c.body).where(SETS.c.id == set_id)).first()
             if row is None:
-                rows = db.scalars(select(SetRow).where(SetRow.id.like(f"{set_id}%"))).all()
+                rows = db.execute(select(SETS.c.id, SETS.c.body).where(SETS.c.id.like(f"{set_id}%"))).all()
                 if len(rows) != 1:
                     what = "matches several sets" if rows else "is not in the store"
                     raise StoreError(f"store {self.url}: set {set_id!r} {what}")
                 row = rows[0]
-            return _set_from_row(row)
+        return _set_from_row(row.id, row.body)
 
     def latest(self, serial: str) -> CalibrationSet | None:
         """The newest set of unit ``serial`` (None if it has none)."""
         with self.transaction() as db:
-            row = db.scalars(select(SetRow).where(SetRow.serial == serial).order_by(SetRow.version.desc())).first()
-            return None if row is None else _set_from_row(row)
+            row = db.execute(select(SETS.c.id, SETS.c.body).where(SETS.c.serial == serial)
+                             .order_by(SETS.c.version.desc())).first()
+        return None if row is None else _set_from_row(row.id, row.body)
 
     def list_sets(self, serial: str | None = None) -> list[SetInfo]:
         """Stored sets (all, or one unit's history), newest first."""
         with self.transaction() as db:
-            q = (select(SetRow, UnitRow.model, ApprovalRow.approved_by)
-                 .join(UnitRow, UnitRow.serial == SetRow.serial)
-                 .outerjoin(ApprovalRow, ApprovalRow.set_id == SetRow.id))
+            q = (select(SETS.c.id, SETS.c.serial, UNITS.c.model, SETS.c.version, SETS.c.created, SETS.c.procedures,
+                        APPROVALS.c.approved_by)
+                 .join(UNITS, UNITS.c.serial == SETS.c.serial)
+                 .outerjoin(APPROVALS, APPROVALS.c.set_id == SETS.c.id))
             if serial is not None:
-                q = q.where(SetRow.serial == serial)
-            rows = db.execute(q.order_by(SetRow.created.desc(), SetRow.version.desc())).all()
-            return [SetInfo(r.id, r.serial, model, r.version, r.created,
-                            tuple(p for p in r.procedures.split(",") if p), by) for r, model, by in rows]
+                q = q.where(SETS.c.serial == serial)
+            rows = db.execute(q.order_by(SETS.c.created.desc(), SETS.c.version.desc())).all()
+        return [SetInfo(r.id, r.serial, r.model, r.version, r.created,
+                        tuple(p for p in r.procedures.split(",") if p), r.approved_by) for r in rows]
 
     def history(self, serial: str) -> list[SetInfo]:
         """All versions of one unit's calibration, newest first."""
@@ -262,21 +283,22 @@ class Store:
         """Record that ``by`` approved set ``set_id`` (the set itself is not modified)."""
         full_id = self.get_set(set_id).id
         with self.transaction() as db:
-            if db.get(ApprovalRow, full_id) is not None:
+            if db.scalar(select(APPROVALS.c.set_id).where(APPROVALS.c.set_id == full_id)) is not None:
                 raise StoreError(f"store {self.url}: set {full_id} is already approved")
-            db.add(ApprovalRow(set_id=full_id, approved_by=by, approved_at=_now(), comment=comment))
+            db.execute(insert(APPROVALS).values(set_id=full_id, approved_by=by, approved_at=_now(), comment=comment))
 
     def approval(self, set_id: str) -> dict | None:
         """The approval of a stored set (``approved_by``, ``approved_at`` UTC, ``comment``), None if not approved."""
         with self.transaction() as db:
-            row = db.get(ApprovalRow, set_id)
-            return None if row is None else {"approved_by": row.approved_by, "approved_at": row.approved_at,
-                                             "comment": row.comment}
+            row = db.execute(select(APPROVALS.c.approved_by, APPROVALS.c.approved_at, APPROVALS.c.comment)
+                             .where(APPROVALS.c.set_id == set_id)).first()
+        return None if row is None else dict(row._mapping)
 
     def units(self) -> list[tuple[str, str]]:
         """(serial, model) of every unit in the store."""
         with self.transaction() as db:
-            return [(u.serial, u.model) for u in db.scalars(select(UnitRow).order_by(UnitRow.serial))]
+            return [(u.serial, u.model) for u in db.execute(select(UNITS.c.serial, UNITS.c.model)
+                                                            .order_by(UNITS.c.serial))]
 
     # -- sessions and results --------------------------------------------------------
     def add_session(self, session_id: str, serial: str, model: str, procedure: str, path: str,
@@ -285,20 +307,20 @@ class Store:
         path = str(Path(path).resolve()) if path else ""
         with self.transaction() as db:
             self._ensure_unit(db, serial, model)
-            row = db.get(SessionRow, session_id)
-            if row is None:
-                db.add(SessionRow(id=session_id, serial=serial, procedure=procedure, path=path, created=_now(),
-                                  sha256=sha256, n_steps=n_steps, complete=complete))
+            if db.scalar(select(SESSIONS.c.id).where(SESSIONS.c.id == session_id)) is None:
+                db.execute(insert(SESSIONS).values(id=session_id, serial=serial, procedure=procedure, path=path,
+                                                   created=_now(), sha256=sha256, n_steps=n_steps, complete=complete))
             else:
-                row.sha256, row.n_steps, row.complete = sha256, n_steps, complete
+                db.execute(update(SESSIONS).where(SESSIONS.c.id == session_id)
+                           .values(sha256=sha256, n_steps=n_steps, complete=complete))
 
-    def list_sessions(self, serial: str | None = None) -> list[SessionRow]:
+    def list_sessions(self, serial: str | None = None) -> list[SessionInfo]:
         """Recorded sessions, newest first."""
         with self.transaction() as db:
-            q = select(SessionRow)
+            q = select(SESSIONS)
             if serial is not None:
-                q = q.where(SessionRow.serial == serial)
-            return list(db.scalars(q.order_by(SessionRow.created.desc())))
+                q = q.where(SESSIONS.c.serial == serial)
+            return [SessionInfo(**r._mapping) for r in db.execute(q.order_by(SESSIONS.c.created.desc()))]
 
     def add_result(self, procedure: str, session_id: str, serial: str, result: dict,
                    calset: CalibrationSet | None = None) -> int:
@@ -309,17 +331,11 @@ class Store:
                 with self.transaction() as db:
                     self._ensure_unit(db, serial, calset.unit.model if calset else "")
                     if calset is not None:
-                        version = (db.scalar(select(func.max(SetRow.version))
-                                             .where(SetRow.serial == calset.unit.serial)) or 0) + 1
-                        db.add(SetRow(id=calset.id, serial=calset.unit.serial, version=version,
-                                      created=calset.created, procedures=",".join(calset.provenance.procedures),
-                                      sha256=hashlib.sha256(body.encode()).hexdigest(), body=body))
-                    row = ResultRow(procedure=procedure, session_id=session_id, serial=serial,
-                                    calibration_id=calset.id if calset else None, created=_now(),
-                                    body=json.dumps(result))
-                    db.add(row)
-                    db.flush()
-                    return row.id
+                        self._insert_set(db, calset, body, hashlib.sha256(body.encode()).hexdigest())
+                    inserted = db.execute(insert(RESULTS).values(
+                        procedure=procedure, session_id=session_id, serial=serial,
+                        calibration_id=calset.id if calset else None, created=_now(), body=json.dumps(result)))
+                    return inserted.inserted_primary_key[0]
             except IntegrityError:
                 if self._in_batch():
                     raise
@@ -329,11 +345,11 @@ class Store:
     def list_results(self, procedure: str | None = None, serial: str | None = None) -> list[dict]:
         """Stored results as dicts (``id``, ``procedure``, ``session_id``, ``serial``, ``created``, ``result``)."""
         with self.transaction() as db:
-            q = select(ResultRow)
+            q = select(RESULTS)
             if procedure is not None:
-                q = q.where(ResultRow.procedure == procedure)
+                q = q.where(RESULTS.c.procedure == procedure)
             if serial is not None:
-                q = q.where(ResultRow.serial == serial)
+                q = q.where(RESULTS.c.serial == serial)
             return [{"id": r.id, "procedure": r.procedure, "session_id": r.session_id, "serial": r.serial,
                      "calibration_id": r.calibration_id, "created": r.created, "result": json.loads(r.body)}
-                    for r in db.scalars(q.order_by(ResultRow.id.desc()))]
+                    for r in db.execute(q.order_by(RESULTS.c.id.desc()))]

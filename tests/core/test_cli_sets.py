@@ -35,6 +35,17 @@ def test_sets_list_show_diff_export(db, tmp_path, capsys):
     assert json.loads(capsys.readouterr().out)["id"] == s1.id
 
 
+def test_sets_list_on_an_empty_store_says_so(db, capsys):
+    # issue 23: an empty store prints one clear line naming the store, exit 0 (not nothing)
+    assert main(["sets", "list"]) == 0
+    assert " ".join(capsys.readouterr().out.split()) == f"no calibration sets in {db}"  # may wrap before the path
+    Store(db).add_set(a_set(serial="U1"))
+    assert main(["sets", "list", "--unit", "U2"]) == 0
+    assert " ".join(capsys.readouterr().out.split()) == f"no calibration sets of unit U2 in {db}"
+    assert main(["sets", "list", "--format", "json", "--unit", "U2"]) == 0
+    assert json.loads(capsys.readouterr().out) == []  # machine-readable output stays plain JSON
+
+
 @pytest.mark.parametrize("args,match", [
     (["sets", "export", "X", "--format", "nope"], "unknown export format 'nope'"),
     (["sets", "show", "deadbeef"], "not in the store"),

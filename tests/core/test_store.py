@@ -43,7 +43,7 @@ def test_crash_mid_write_leaves_nothing(tmp_path):
     code = f"""
 import os
 from sqlalchemy import event
-from workbench.store import Store, SetRow
+from workbench.store import Store
 from tests.core.test_store import a_set
 store = Store({url!r})
 @event.listens_for(store.engine, "commit")

@@ -1,4 +1,4 @@
-"""The store's tables and schema revision (workbench/store_schema.py): the migrations build what the ORM declares."""
+"""The store's tables and schema revision (workbench/store_schema.py): the migrations build what the tables declare."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import pytest
 from sqlalchemy import create_engine, inspect, text
 
 from workbench.errors import StoreError
-from workbench.store_schema import HEAD_REVISION, VERSION_TABLE, Base, schema_revision, upgrade
+from workbench.store_schema import HEAD_REVISION, VERSION_TABLE, METADATA, schema_revision, upgrade
 
 
 def test_empty_database_has_no_revision_and_upgrade_reaches_head(tmp_path):
@@ -20,8 +20,8 @@ def test_migrations_build_every_declared_table_and_column(tmp_path):
     engine = create_engine(f"sqlite:///{tmp_path / 's.db'}")
     upgrade(engine)
     insp = inspect(engine)
-    assert set(Base.metadata.tables) <= set(insp.get_table_names())
-    for name, table in Base.metadata.tables.items():
+    assert set(METADATA.tables) <= set(insp.get_table_names())
+    for name, table in METADATA.tables.items():
         built = {c["name"] for c in insp.get_columns(name)}
         assert built == {c.name for c in table.columns}, name
 

@@ -1,7 +1,8 @@
 """The ``workbench`` command line (also ``python -m workbench``).
 
 Command groups live in the modules of this package; each defines ``register(app)`` and is
-discovered here, so a new command is one new module. Every
+discovered here, so a new command is one new module. A command line loads only the module of
+its command when that module is named after it (see :func:`register_for`). Every
 :class:`~workbench.errors.WorkbenchError` becomes one line on stderr and exit code 2.
 """
 
@@ -82,29 +83,55 @@ def _root(db: str = typer.Option(None, "--db", help="Store URL (SQLAlchemy); def
         os.environ["WORKBENCH_DB"] = db
 
 
-def _register_all() -> None:
-    for m in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
-        if not m.name.startswith("_"):
-            module = importlib.import_module(f"{__name__}.{m.name}")
+_ROOT_VALUE_OPTIONS = ("--db",)  # the options of _root that take a value (the command comes after it)
+
+
+_MODULES = sorted(m.name for m in pkgutil.iter_modules(__path__) if not m.name.startswith("_"))
+_registered: set[str] = set()  # command modules whose register(app) has run
+
+
+def _register(names: list[str]) -> None:
+    """Import the command modules ``names`` and register their commands (each module once)."""
+    for name in names:
+        if name not in _registered:
+            _registered.add(name)
+            module = importlib.import_module(f"{__name__}.{name}")
             if hasattr(module, "register"):
                 module.register(app)
 
 
-_register_all()
+def _command_names() -> set[str]:
+    return {c.name for c in app.registered_commands} | {g.name for g in app.registered_groups}
+
+
+def register_for(args: list[str]) -> None:
+    """Register what the command line ``args`` needs: only the module named after its command
+    when that module defines the command (``workbench sets list`` loads ``cli/sets.py`` alone),
+    else every module (``--help`` lists them all; a command defined elsewhere is found)."""
+    rest = iter(args)
+    named = None
+    for a in rest:
+        if a in _ROOT_VALUE_OPTIONS:
+            next(rest, None)
+        elif not a.startswith("-"):
+            named = a if a in _MODULES else None
+            break
+    if named is not None:
+        _register([named])
+        if named in _command_names():
+            return
+    _register(_MODULES)
 
 
 def _click_errors() -> tuple[tuple, tuple, tuple]:
     """(usage errors, exits, aborts) of every click the installed typer may raise.
 
     Typer up to 0.15 raises ``click``'s exceptions; later versions raise those of their own
-    vendored copy (``typer._click``) and ``typer.Exit`` / ``typer.Abort`` of their own.
+    vendored copy (``typer._click``) and ``typer.Exit`` / ``typer.Abort`` of their own. Whichever
+    it is, typer has imported it already: a click nobody imported raises nothing, and importing
+    it here would cost every command about 0.05 s.
     """
-    mods = []
-    for name in ("click.exceptions", "typer._click.exceptions"):
-        try:
-            mods.append(importlib.import_module(name))
-        except ImportError:
-            pass
+    mods = [m for m in map(sys.modules.get, ("click.exceptions", "typer._click.exceptions")) if m is not None]
 
     def found(name: str, *extra: type) -> tuple:
         return tuple({*(getattr(m, name) for m in mods if hasattr(m, name)), *extra})
@@ -125,6 +152,7 @@ def main(argv: list[str] | None = None) -> int:
     Usage errors (a missing argument, a bad choice, an unknown command or option) and every
     :class:`~workbench.errors.WorkbenchError` are one line and exit 2; Ctrl-C exits 130.
     """
+    register_for(sys.argv[1:] if argv is None else argv)
     usage, exits, aborts = _click_errors()
     command = typer.main.get_command(app)
     try:

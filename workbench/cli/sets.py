@@ -36,7 +36,8 @@ def list_sets(unit: str = typer.Option(None, "--unit", help="Only this unit seri
     """List stored calibration sets, newest first."""
     from workbench.store import Store
 
-    infos = Store().list_sets(unit)
+    store = Store()
+    infos = store.list_sets(unit)
     if format == "json":
         out.print_json(json.dumps([{"id": i.id, "serial": i.serial, "model": i.model, "version": i.version,
                                     "created": i.created, "procedures": list(i.procedures),
@@ -44,6 +45,8 @@ def list_sets(unit: str = typer.Option(None, "--unit", help="Only this unit seri
         return
     if format != "table":
         raise typer.BadParameter(f"--format {format!r}: expected table or json")
+    if not infos:
+        out.print(f"no calibration sets {'' if unit is None else f'of unit {unit} '}in {store.url}")
     for i in infos:
         unit = f"{i.serial} ({i.model})" if i.model and i.model not in i.serial else i.serial
         out.print(styled(i.id[:8], "bold", f"  {unit}  v{i.version}  {i.created[:16].replace('T', ' ')} UTC  "
