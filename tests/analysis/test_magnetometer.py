@@ -8,6 +8,8 @@ error, not the noise of single samples) with the tilt taken from the true attitu
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -175,6 +177,32 @@ def test_level_only_uses_2d_and_says_3d_is_not_observable():
     cs = CalibrationSet(unit=Unit("u1"), triads={"mag": triad_calibration(fit)})
     d = cs.to_dict()["mag"]
     assert d["bias_sigma"][2] is None and d["field_norm_ut_sigma"] is None
+
+
+def test_2d_fit_reports_the_horizontal_scale_as_not_observed_and_passes_gate_and_exports():
+    from workbench import plausibility
+    from workbench.errors import ExportError
+    from workbench.registry import exporters
+
+    rng = np.random.default_rng(41)
+    att = turntable(0.0, 5.0, repeat=10)
+    m, acc = measure(att, rng)
+    fit = calibrate(MagPoints(m, acc, att, "NED"), declination=DECL).fit
+    # the common scale of the 2x2 block trades with the horizontal field: the convention (minor axis = 1)
+    # sets the diagonal element nearest the minor axis, so exactly one horizontal diagonal reads not observed;
+    # the other (the major / minor ratio) and the off-diagonal (the ellipse's tilt) are observed
+    diag = fit.soft_iron_sigma[[0, 1], [0, 1]]
+    assert np.isnan(diag).sum() == 1 and np.isfinite(fit.soft_iron_sigma[0, 1])
+    assert any("common scale of the horizontal soft iron" in w for w in fit.warnings)
+    cs = CalibrationSet(unit=Unit("u1"), triads={"mag": triad_calibration(fit)})
+    assert plausibility.check(cs) == []  # not-observed entries are no failure
+    for name, module in exporters().items():
+        try:
+            out = module.export(cs)  # every format writes a set with not-observed entries, never a bare nan
+        except ExportError as exc:
+            assert "no noise block" in str(exc), name  # Kalibr's format is noise only
+            continue
+        assert out.text and not re.search(r"\b(nan|NaN)\b", out.text), name  # (C's NAN macro is math.h's)
 
 
 def test_paper_004_minmax_recipe_on_level_data():

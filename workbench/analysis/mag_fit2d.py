@@ -14,7 +14,9 @@ through the soft iron), shape = the 2x2 soft iron. Paper 004 (shared/seeds/004_.
 :func:`fit_2d` estimates the same quantities (``alpha, beta, theta, sigma``) by least squares on
 all points, with uncertainties. Both return a :class:`MagFit` embedded in 3D: the vertical
 axis's bias, the soft-iron row and column of the vertical axis and the field norm are NOT
-observable from level data (NaN sigma, prior values: bias 0, identity), and say so.
+observable from level data (NaN sigma, prior values: bias 0, identity), and say so; nor is the common
+scale of the 2x2 block (it trades with the horizontal field ``H``): the convention fixes the minor axis
+at 1, so the diagonal element nearest the minor axis carries the convention, not data (NaN sigma).
 """
 
 from __future__ import annotations
@@ -24,8 +26,10 @@ import numpy as np
 from workbench.analysis.mag_fit import MagFit, Solution, nan33, propagate, solve
 from workbench.errors import AnalysisError
 
-NOT_OBSERVABLE = ("level-only data: the vertical axis's hard iron, the soft iron coupling to it, the dip and the "
-                  "field norm are not observable (sigma null); 2D calibration valid for level headings only")
+NOT_OBSERVABLE = ("level-only data: the vertical axis's hard iron, the soft iron coupling to it, the dip, the "
+                  "field norm and the common scale of the horizontal soft iron (the paper's convention sets the minor "
+                  "axis to 1: that diagonal element reads not observed) are not observable (sigma null); 2D "
+                  "calibration valid for level headings only")
 
 
 def _rot(theta: float) -> np.ndarray:
@@ -134,5 +138,13 @@ def fit_2d(mag: np.ndarray, down_mean: np.ndarray = np.array([0.0, 0.0, 1.0]),
     if robust and (~sol.inliers).any():
         notes.append(f"robust fit: {int((~sol.inliers).sum())} of {len(xy)} points rejected as outliers")
     rms = float(np.sqrt(np.mean(sol.residuals**2)))
-    return _embed("2d", axes, p[:2], sig[:2], a2_of(p).reshape(2, 2), np.sqrt(np.abs(np.diag(cov_a2))).reshape(2, 2),
+    a2_sig = np.sqrt(np.abs(np.diag(cov_a2))).reshape(2, 2)
+    a2_sig[_minor_diagonal(p[2]), _minor_diagonal(p[2])] = np.nan  # the convention's, not the data's (see NOT_OBSERVABLE)
+    return _embed("2d", axes, p[:2], sig[:2], a2_of(p).reshape(2, 2), a2_sig,
                   float(p[4]), mag, rms, int(sol.inliers.sum()), tuple(notes), ~sol.inliers)
+
+
+def _minor_diagonal(theta: float) -> int:
+    """Index (0 or 1, of the two horizontal axes) of the diagonal element of ``A2 = R^T diag(sigma, 1) R`` nearest
+    the minor axis ``(-sin theta, cos theta)``: the element the scaling convention (minor axis = 1) sets."""
+    return 1 if abs(np.cos(theta)) >= abs(np.sin(theta)) else 0
