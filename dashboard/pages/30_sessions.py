@@ -1,4 +1,7 @@
-"""Sessions: browse recorded sessions, import a file through an import profile, inspect samples by step.
+"""Sessions: browse recorded sessions, import a recording through an import profile, inspect samples by step.
+
+A recording is one uploaded file, the stream files of a multi-stream profile (``streams:``), or a data
+folder inside the dashboard's data roots (:mod:`dashboard.roots`), imported by the CLI's importer.
 
 Plots are min/max envelopes of at most a few thousand points (``charts.downsample``), so a
 multi-hour session at hundreds of Hz stays responsive. An import is written to a temporary
@@ -40,41 +43,89 @@ def import_profiles() -> dict[str, Path]:
     return {p.stem: p for p in found}
 
 
-def import_upload(profile: Path, name: str, data: bytes, companions: dict[str, bytes]) -> Path:
-    """Import an uploaded recording through ``profile`` into ``runs/imports/<name>``, all or nothing.
+def _store_import(profile: Path, data: Path, name: str, shown: dict[str, str]) -> Path:
+    """Import ``data`` (a file, or a folder for a profile with ``streams``) through ``profile`` into
+    ``runs/imports/<name>-<id>``, all or nothing, with the CLI's importer (:func:`workbench.importer.import_file`).
 
-    ``companions`` are files the profile refers to next to the recording (e.g. a sections
-    JSON). The importer writes into a temporary folder and validates the session; only a
-    valid session is moved into place and recorded in the store.
-    """
+    The session is written into a temporary folder and validated by loading it; only then is it moved
+    into place and recorded in the store. ``shown`` maps paths in error messages to what the user knows
+    them as (an upload's temporary folder to "uploaded")."""
     from workbench.importer import import_file
 
     dest_root = roots.runs_dir() / "imports"
     dest_root.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=dest_root, prefix=".import-") as tmp:
-        src = Path(tmp) / Path(name).name
-        src.write_bytes(data)
-        for cname, cdata in companions.items():
-            (Path(tmp) / Path(cname).name).write_bytes(cdata)
         out = Path(tmp) / "session"
         try:
-            session = import_file(profile, src, out)
-        except WorkbenchError as exc:  # name the uploaded file, not the temporary folder
-            raise type(exc)(str(exc).replace(f"{tmp}/", "uploaded ")) from None
-        dest = dest_root / f"{Path(name).stem}-{session.id[:8]}"
+            session = import_file(profile, data, out)
+        except WorkbenchError as exc:  # name the user's file or folder, not the temporary folder
+            text = str(exc)
+            for path, label in {**shown, str(profile): profile.name}.items():
+                text = text.replace(path, label)
+            raise type(exc)(text) from None
+        dest = dest_root / f"{name}-{session.id[:8]}"
         if dest.exists():
             raise FileExistsError(f"{dest} already exists (this recording was imported before)")
         shutil.move(str(out), dest)
     ui.store().add_session(session.id, session.unit.serial, session.unit.model, session.procedure or "import",
-                               str(dest), file_sha256(dest / "samples.parquet"), len(session.steps), True)
+                           str(dest), file_sha256(dest / "samples.parquet"), len(session.steps), True)
     return dest
 
 
+def stream_files(profile: Path) -> list[str] | None:
+    """The files a profile with ``streams`` reads from its data folder (None: a single-file profile)."""
+    from workbench.importers.profile import load_profile
+
+    prof = load_profile(profile)
+    return [str(spec["file"]) for spec in prof["streams"].values()] if "streams" in prof else None
+
+
+def import_upload(profile: Path, files: dict[str, bytes], companions: dict[str, bytes]) -> Path:
+    """Import an uploaded recording through ``profile`` into ``runs/imports/``, all or nothing.
+
+    ``files``: the recording, one file, or for a profile with ``streams`` its stream files (named as
+    the profile's ``file`` entries), which become the data folder. ``companions`` are files the
+    profile refers to next to the recording (e.g. a sections JSON). Upload names are single path
+    components (:func:`workbench.confine.safe_component`); nothing outside the temporary folder is read.
+    """
+    from workbench.confine import safe_component
+
+    if not files:
+        raise WorkbenchError("recording: no file uploaded")
+    streams = stream_files(profile)
+    names = [safe_component(Path(n).name, "uploaded file") for n in files]
+    if streams is None and len(files) > 1:
+        raise WorkbenchError(f"{profile.name}: reads one file, {len(files)} uploaded ({', '.join(names)}); "
+                             "a profile with streams: reads several")
+    dest_root = roots.runs_dir() / "imports"
+    dest_root.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=dest_root, prefix=".upload-") as tmp:
+        folder = Path(tmp) / "recording"
+        folder.mkdir()
+        for n, data in zip(names, files.values()):
+            (folder / n).write_bytes(data)
+        for cname, cdata in companions.items():
+            (folder / safe_component(Path(cname).name, "companion file")).write_bytes(cdata)
+        data_path = folder if streams is not None else folder / names[0]
+        name = Path(profile).stem if streams is not None else Path(names[0]).stem
+        return _store_import(profile, data_path, name, {f"{folder}/": "uploaded ", str(folder): "uploaded files"})
+
+
+def import_folder(profile: Path, typed: str) -> Path:
+    """Import the recording in the data folder ``typed`` (confined to the dashboard's data roots,
+    :mod:`dashboard.roots`) through ``profile``, as ``workbench import PROFILE FOLDER`` does."""
+    folder = roots.confined_folder(typed, roots.data_roots(roots.default_roots()))
+    if not folder.is_dir():
+        raise WorkbenchError(f"{typed}: not a folder")
+    return _store_import(profile, folder, folder.name, {})
+
+
 st.title("Sessions")
-tab_browse, tab_import = st.tabs(["Browse and inspect", "Import a file"])
+tab_browse, tab_import = st.tabs(["Browse and inspect", "Import a recording"])
 
 with tab_import:
-    st.markdown("Convert a recording from another tool (CSV / Parquet) into a session with an import profile.")
+    st.markdown("Convert a recording from another tool (CSV / Parquet, one file or one file per stream) into a "
+                "session with an import profile.")
     profiles = import_profiles()
     source = st.radio("Profile", ["shipped", "upload"], horizontal=True, key="imp.source")
     profile_path = None
@@ -89,16 +140,36 @@ with tab_import:
             tmp_profile = Path(tempfile.mkdtemp(prefix="wb-profile-")) / Path(up.name).name
             tmp_profile.write_bytes(up.getvalue())
             profile_path = tmp_profile
-    data_file = st.file_uploader("Recording", type=["csv", "parquet", "txt", "dat"], key="imp.data")
-    companions = st.file_uploader("Companion files the profile refers to (e.g. a sections JSON)",
-                                  accept_multiple_files=True, key="imp.companions") or []
-    if st.button("Import", disabled=profile_path is None or data_file is None, key="imp.go"):
+    streams = None
+    if profile_path is not None:
         try:
-            dest = import_upload(profile_path, data_file.name, data_file.getvalue(),
-                                 {c.name: c.getvalue() for c in companions})
+            streams = stream_files(profile_path)
+        except WorkbenchError as exc:
+            ui.show_error(exc, "import profile")
+            profile_path = None
+    if streams is not None:
+        st.caption(f"This profile reads {len(streams)} streams from a data folder: {', '.join(streams)}.")
+    where = st.radio("Recording", ["upload", "data folder"], horizontal=True, key="imp.from")
+    if where == "upload":
+        data_files = st.file_uploader("Recording file(s): one file, or every stream file of a multi-stream profile",
+                                      type=["csv", "parquet", "txt", "dat"], accept_multiple_files=True,
+                                      key="imp.data") or []
+        companions = st.file_uploader("Companion files the profile refers to (e.g. a sections JSON)",
+                                      accept_multiple_files=True, key="imp.companions") or []
+        ready, what = bool(data_files), ", ".join(f.name for f in data_files)
+    else:
+        typed = st.text_input("Data folder (inside the dashboard's data roots)", key="imp.folder")
+        ready, what = bool(typed.strip()), typed
+    if st.button("Import", disabled=profile_path is None or not ready, key="imp.go"):
+        try:
+            if where == "upload":
+                dest = import_upload(profile_path, {f.name: f.getvalue() for f in data_files},
+                                     {c.name: c.getvalue() for c in companions})
+            else:
+                dest = import_folder(profile_path, typed)
             st.success(f"Imported into {dest}")
         except Exception as exc:  # noqa: BLE001 - unreadable uploads raise many types; nothing was kept
-            ui.show_error(exc, f"import of {data_file.name}")
+            ui.show_error(exc, f"import of {what}")
 
 with tab_browse:
     folder = results.session_picker(key="sess.pick")

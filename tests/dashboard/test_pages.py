@@ -282,11 +282,43 @@ def _recording_csv(n: int = 100) -> bytes:
     return ("\n".join(lines) + "\n").encode()
 
 
-def _import(at: AppTest, data: tuple[str, bytes, str], profile: str = PROFILE) -> AppTest:
+def _import(at: AppTest, data: tuple[str, bytes, str] | list[tuple[str, bytes, str]], profile: str = PROFILE,
+            folder: str | None = None) -> AppTest:
+    """Upload ``profile`` and the recording: one file, several (``data`` a list), or a typed data ``folder``."""
     at.radio(key="imp.source").set_value("upload").run()
     at.file_uploader(key="imp.profile_upload").set_value(("profile.yaml", profile.encode(), "application/yaml"))
-    at.file_uploader(key="imp.data").set_value(data).run()
+    if folder is not None:
+        at.radio(key="imp.from").set_value("data folder").run()
+        at.text_input(key="imp.folder").input(folder).run()
+    else:
+        at.file_uploader(key="imp.data").set_value(data if isinstance(data, list) else [data]).run()
     return at.button(key="imp.go").click().run()
+
+
+# two streams, one file each (as the MARG recordings, without arrival stamps): accel in g, gyro in deg/s, 100 Hz
+STREAMS_PROFILE = """format: workbench-import/1
+unit: {serial: IMP-9, model: two-stream board}
+site: {latitude_deg: 49.0}
+time_base: accel
+streams:
+  accel:
+    file: accelerometer.csv
+    time: {column: t_s, unit: s}
+    rate_hz: 100
+    columns: {ax: {column: ax_g, unit: g}, ay: {column: ay_g, unit: g}, az: {column: az_g, unit: g}}
+  gyro:
+    file: gyroscope.csv
+    time: {column: t_s, unit: s}
+    rate_hz: 100
+    columns: {gx: {column: gx_dps, unit: deg/s}, gy: {column: gy_dps, unit: deg/s}, gz: {column: gz_dps, unit: deg/s}}
+"""
+
+
+def _stream_files(n: int = 300) -> list[tuple[str, bytes, str]]:
+    # values change every sample (a constant value would be read as stale repeats)
+    acc = "\n".join(["t_s,ax_g,ay_g,az_g", *(f"{i / 100},{0.001 * (i % 7)},0,1.0" for i in range(n))]) + "\n"
+    gyr = "\n".join(["t_s,gx_dps,gy_dps,gz_dps", *(f"{i / 100 + 0.002},{0.01 * (i % 5)},0,0" for i in range(n))]) + "\n"
+    return [("accelerometer.csv", acc.encode(), "text/csv"), ("gyroscope.csv", gyr.encode(), "text/csv")]
 
 
 def _imports(db_tmp: Path) -> list[Path]:
@@ -338,6 +370,48 @@ def test_sessions_import_profile_not_matching_columns(seeded_db, tmp_path):
     assert not at.exception
     assert any("'gyro_y'" in e for e in texts(at, "error"))
     assert _imports(tmp_path) == [] and seeded_db.list_sessions() == []
+
+
+def test_sessions_import_multi_stream_upload(seeded_db, tmp_path):
+    at = _import(page("30_sessions.py"), _stream_files(), profile=STREAMS_PROFILE)
+    assert not at.exception and not at.error, texts(at, "error")
+    assert any("reads 2 streams from a data folder: accelerometer.csv, gyroscope.csv" in c.value for c in at.caption)
+    (folder,) = _imports(tmp_path)
+    sessions = seeded_db.list_sessions("IMP-9")
+    assert len(sessions) == 1 and sessions[0].path == str(folder) and sessions[0].n_steps == 1  # one free step
+    from workbench.session import load_session
+
+    s = load_session(folder)
+    assert len(s.samples) >= 290 and s.options["import"]["streams"].keys() == {"accel", "gyro"}
+
+
+def test_sessions_import_multi_stream_missing_file_or_one_file_profile(seeded_db, tmp_path):
+    at = _import(page("30_sessions.py"), _stream_files()[:1], profile=STREAMS_PROFILE)
+    errors = texts(at, "error")
+    assert not at.exception and len(errors) == 1
+    assert "streams.gyro" in errors[0] and "uploaded gyroscope.csv: no such file" in errors[0], errors
+    at = _import(page("30_sessions.py"), _stream_files())  # the single-file profile, two files
+    assert any("reads one file, 2 uploaded (accelerometer.csv, gyroscope.csv)" in e for e in texts(at, "error"))
+    assert _imports(tmp_path) == [] and seeded_db.list_sessions() == []
+
+
+def test_sessions_import_data_folder_confined_to_the_roots(seeded_db, tmp_path):
+    rec = tmp_path / "runs" / "data" / "board-1"  # the runs folder is a data root by default
+    rec.mkdir(parents=True)
+    for name, data, _ in _stream_files():
+        (rec / name).write_bytes(data)
+    at = _import(page("30_sessions.py"), [], profile=STREAMS_PROFILE, folder=str(rec))
+    assert not at.exception and not at.error, texts(at, "error")
+    (folder,) = _imports(tmp_path)
+    assert folder.name.startswith("board-1-") and seeded_db.list_sessions("IMP-9")[0].path == str(folder)
+    outside = tmp_path.parent / "elsewhere"
+    outside.mkdir(exist_ok=True)
+    at = _import(page("30_sessions.py"), [], profile=STREAMS_PROFILE, folder=str(outside))
+    errors = texts(at, "error")
+    assert len(errors) == 1 and "outside the data roots" in errors[0] and "\n" not in errors[0].split("  \n")[0]
+    at = _import(page("30_sessions.py"), [], profile=STREAMS_PROFILE, folder=str(rec / ".." / ".." / ".." / ".."))
+    assert any("outside the data roots" in e for e in texts(at, "error"))
+    assert len(_imports(tmp_path)) == 1
 
 
 def test_downsample_keeps_extremes_and_bounds_points():
