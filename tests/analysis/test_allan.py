@@ -130,3 +130,20 @@ def test_channel_major_record_gives_the_same_curve():
 
     np.testing.assert_array_equal(phase(yf, RATE), phase(y, RATE, compiled=False))
     np.testing.assert_allclose(deviation(yf, RATE).dev, deviation(y, RATE).dev, rtol=1e-12)
+
+
+def test_phase_in_place_of_a_rate_buffer_equals_the_copy():
+    """``overwrite`` integrates into the buffer only for the exact ``buf[:, 1:].T`` view."""
+    from workbench.analysis.allan import phase, rate_buffer
+
+    y = np.random.default_rng(4).standard_normal((500, 3))
+    expected = phase(y, 10.0)
+    buf = rate_buffer(500, 3)
+    buf[:, 1:] = y.T
+    x = phase(buf[:, 1:].T, 10.0, overwrite=True)
+    assert x is buf and np.array_equal(x, expected)
+    other = rate_buffer(500, 3)
+    other[:, 1:] = y.T
+    part = other[:, 1:-1].T  # not the whole buffer: a new array, the samples untouched
+    x = phase(part, 10.0, overwrite=True)
+    assert not np.shares_memory(x, other) and np.array_equal(other[:, 1:], y.T)

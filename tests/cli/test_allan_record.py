@@ -50,3 +50,25 @@ def test_parquet_read_by_column_equals_the_csv_path(tmp_path):
     yp, rp, cp, _ = load_record(tmp_path / "r.parquet", None, None)
     yc, rc, cc, _ = load_record(tmp_path / "r.csv", None, None)
     assert cp == cc == ["ax", "ay"] and rp == pytest.approx(rc) and np.array_equal(yp, yc)
+
+
+@pytest.mark.parametrize("piece_rows", [1 << 20, 64])
+def test_parquet_row_groups_and_pieces_give_the_whole_record(tmp_path, monkeypatch, piece_rows):
+    """Row groups read whole, or (groups larger than PIECE_ROWS) batches: the same samples and time,
+    in a rate buffer whose phase can be integrated in place."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from workbench.analysis.allan import phase
+    from workbench.cli import allan_record
+
+    monkeypatch.setattr(allan_record, "PIECE_ROWS", piece_rows)
+    rng = np.random.default_rng(3)
+    t, gx, gz = np.arange(1000) / 100.0, rng.standard_normal(1000), rng.integers(-5, 5, 1000)
+    pq.write_table(pa.table({"t": t, "gx": gx, "gz": gz}), tmp_path / "r.parquet", row_group_size=300)
+    y, rate, cols, _ = load_record(tmp_path / "r.parquet", None, None)
+    assert cols == ["gx", "gz"] and rate == pytest.approx(100.0)
+    assert np.array_equal(y, np.column_stack([gx, gz]))
+    expected = phase(y.copy(), rate)
+    x = phase(y, rate, overwrite=True)
+    assert np.shares_memory(x, y) and np.array_equal(x, expected)

@@ -168,29 +168,55 @@ def _check_magnitude(y: np.ndarray, columns, source: str, quantity: str) -> None
 
 # -- phase and kernels --------------------------------------------------------------------
 
-def phase(y: np.ndarray, rate: float, compiled: bool | None = None) -> np.ndarray:
+def rate_buffer(n: int, n_channels: int) -> np.ndarray:
+    """An empty (C, N + 1) float64 buffer whose columns 1.. are to hold N rate samples per channel.
+
+    A reader that fills ``buf[:, 1:]`` and hands on the view ``buf[:, 1:].T`` (N, C) lets
+    :func:`phase` integrate in place (``overwrite=True``): the phase is the only full-size array.
+    """
+    return np.empty((n_channels, n + 1))
+
+
+def _phase_target(y: np.ndarray) -> np.ndarray | None:
+    """The :func:`rate_buffer` (C, N + 1) whose columns 1.. are ``y`` (N, C), or None."""
+    base = y.base
+    while base is not None and not (base.ndim == 2 and base.shape == (y.shape[1], y.shape[0] + 1)):
+        base = base.base if isinstance(base, np.ndarray) else None
+    if base is None or not base.flags.c_contiguous or base.dtype != np.float64 or y.shape[0] == 0:
+        return None
+    row = base.strides[0]
+    if y.strides != (8, row) or y.ctypes.data != base.ctypes.data + 8:
+        return None
+    return base
+
+
+def phase(y: np.ndarray, rate: float, compiled: bool | None = None, overwrite: bool = False) -> np.ndarray:
     """Phase (C, N+1) from rate samples (N, C): x_0 = 0, x_k = dt cumsum(y - mean) (allantools).
 
     ``compiled``: integrate with the numba kernel in one pass (default: for C-ordered records above
     :data:`COMPILED_WORK` / 20 samples; numpy otherwise, channel by channel in place, no
     temporaries: a channel-major (F-ordered) ``y``, as the CLI reads a file, is the fast case).
+    ``overwrite``: when ``y`` is the view ``buf[:, 1:].T`` of a :func:`rate_buffer`, the phase
+    replaces the samples in ``buf`` (returned; ``y`` is then overwritten) instead of a new array.
     """
     y = np.asarray(y, float)
     if y.ndim == 1:
         y = y[:, None]
-    x = np.empty((y.shape[1], y.shape[0] + 1))
-    x[:, 0] = 0.0
-    if compiled if compiled is not None else (y.size > COMPILED_WORK / 20 and y.flags.c_contiguous):
+    target = _phase_target(y) if overwrite else None
+    x = target if target is not None else np.empty((y.shape[1], y.shape[0] + 1))
+    if target is None and (compiled if compiled is not None else (y.size > COMPILED_WORK / 20 and y.flags.c_contiguous)):
         from workbench.analysis import allan_kernels as kern
 
+        x[:, 0] = 0.0
         kern.integrate(y, kern.column_sums(y) / len(y), 1.0 / float(rate), np.zeros(y.shape[1]), x[:, 1:])
         return x
     dt = 1.0 / float(rate)
     for c in range(y.shape[1]):
         xc = x[c, 1:]
-        np.subtract(y[:, c], np.mean(y[:, c]), out=xc)
+        np.subtract(y[:, c], np.mean(y[:, c]), out=xc)  # xc is y[:, c] itself when overwriting
         np.cumsum(xc, out=xc)
         xc *= dt
+    x[:, 0] = 0.0
     return x
 
 
@@ -278,9 +304,11 @@ def deviation(y: np.ndarray, rate: float, kind: str = "oadev", taus: str | np.nd
 
 
 def segment_deviation(segments: list[np.ndarray], rate: float, kind: str, taus: str | np.ndarray,
-                      columns: tuple[str, ...], source: str = "data") -> tuple[DeviationCurve, np.ndarray]:
+                      columns: tuple[str, ...], source: str = "data",
+                      overwrite: bool = False) -> tuple[DeviationCurve, np.ndarray]:
     """:func:`deviation` of checked gap-free segments (:func:`prepare_rate_data`), and the phase
-    (C, L) of the longest one (for the noise identification), each phase computed once."""
+    (C, L) of the longest one (for the noise identification), each phase computed once.
+    ``overwrite``: a segment that is a :func:`rate_buffer` view is replaced by its phase (:func:`phase`)."""
     longest = max(segments, key=len)
     m = averaging_factors(len(longest) + 1, taus, rate, kind)
     if len(m) == 0:
@@ -291,7 +319,7 @@ def segment_deviation(segments: list[np.ndarray], rate: float, kind: str, taus: 
     for seg in segments:
         n_seg = _n_terms(kind, len(seg) + 1, m)
         use = n_seg > 0
-        x = phase(seg, rate)
+        x = phase(seg, rate, overwrite=overwrite)
         sums[use] += squared_sums(x, m[use], kind)
         n[use] += n_seg[use]
         if seg is longest:

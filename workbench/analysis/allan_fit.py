@@ -350,18 +350,21 @@ def fit_terms(ci: DeviationCI) -> tuple[ChannelNoise, ...]:
 # -- a whole record ------------------------------------------------------------------------
 
 def analyze_record(y: np.ndarray, rate: float, columns: tuple[str, ...] | list[str], quantity: str | None = None,
-                   taus: str | np.ndarray = "octave", gap_policy: str = "error", source: str = "data") -> AllanAnalysis:
+                   taus: str | np.ndarray = "octave", gap_policy: str = "error", source: str = "data",
+                   overwrite: bool = False) -> AllanAnalysis:
     """OADEV with 95 % intervals and the IEEE 952 fit of rate samples ``y`` (N, C), SI, at ``rate`` Hz.
 
     ``quantity`` (``"gyro"`` | ``"accel"``) enables the unit plausibility check and names the
     calibration-set terms; ``taus`` and ``gap_policy`` as :func:`workbench.analysis.allan.deviation`
-    (with gaps, noise identification uses the longest gap-free run).
+    (with gaps, noise identification uses the longest gap-free run). ``overwrite``: ``y`` may be
+    replaced by its phase when it is a :func:`workbench.analysis.allan.rate_buffer` view (no second
+    full-size array; ``y`` is garbage afterwards).
     """
     from workbench.analysis import allan
     from workbench.analysis.allan_ci import confidence
 
     segments, warnings = allan.prepare_rate_data(y, tuple(columns), source, gap_policy, quantity)
-    curve, x = allan.segment_deviation(segments, rate, "oadev", taus, tuple(columns), source)
+    curve, x = allan.segment_deviation(segments, rate, "oadev", taus, tuple(columns), source, overwrite)
     ci = confidence(curve, x)
     return AllanAnalysis(ci, fit_terms(ci), quantity, tuple(warnings))
 

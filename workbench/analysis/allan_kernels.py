@@ -1,7 +1,7 @@
 """Compiled (numba) kernels of the Allan deviations: long records, every lag in one pass.
 
 Loaded only when a record is long enough for the compiled sums to repay numba's start-up
-(about 0.9 s of CPU to import numba and load the cached kernels), by
+(about 0.5 s of CPU to import numba and load the cached kernels), by
 :func:`workbench.analysis.allan.squared_sums` and :func:`workbench.analysis.allan.phase`, and by
 the streamed path (:mod:`workbench.analysis.allan_stream`). The sums equal allantools'
 ``oadev``/``ohdev``/``mdev`` to a relative 1e-9 (tests/analysis/test_allan.py).
@@ -11,8 +11,28 @@ Public: :func:`column_sums`, :func:`integrate`, :func:`block_sum`, :func:`diff_s
 
 from __future__ import annotations
 
+import sys
+
 import numba
 import numpy as np
+
+
+def _load_numba_np() -> None:
+    """Import numba's array registry with scipy hidden: its BLAS probe imports scipy.linalg
+    (~0.3 s of CPU, a third of numba's start-up) and these kernels use no BLAS. Only numba's
+    ``np.correlate`` / ``np.convolve`` then use their loop (matrix products still find scipy's
+    BLAS when compiled: the module is visible again as soon as the registry is loaded)."""
+    hide = "scipy.linalg" if "scipy" in sys.modules else "scipy"
+    if "numba.np.arraymath" in sys.modules or hide in sys.modules:
+        return
+    sys.modules[hide] = None  # type: ignore[assignment]  # import of it raises ImportError
+    try:
+        import numba.np.arraymath  # noqa: F401
+    finally:
+        del sys.modules[hide]
+
+
+_load_numba_np()
 
 BLOCK = 4096  # phase points per cache block (x 8 bytes x up to 4 lag windows: fits L2)
 

@@ -84,7 +84,7 @@ def register(app: typer.Typer) -> None:
             from workbench.analysis.allan_fit import analyze_record
 
             y, fs, cols, label = load_record(source, cols, rate)
-            an = analyze_record(y, fs, cols, quantity_of(cols), taus, gap_policy, label)
+            an = analyze_record(y, fs, cols, quantity_of(cols), taus, gap_policy, label, overwrite=True)
         for w in an.warnings:
             out.print(styled("warning:", "yellow", f" {w}"))
         print_terms(an)

@@ -20,6 +20,7 @@ if TYPE_CHECKING:
 TIME_COLUMNS = ("t", "time")
 TEXT_SUFFIXES = (".txt", ".dat")
 RATE_TOLERANCE = 0.01  # relative spread of sample intervals accepted as a constant rate
+PIECE_ROWS = 1 << 20  # rows decoded at a time from a Parquet file (row groups up to this size are read whole)
 
 
 def quantity_of(columns: list[str]) -> str | None:
@@ -103,13 +104,17 @@ def load_record(path: Path, columns: list[str] | None, rate: float | None) -> tu
 def _parquet_columns(path: Path, columns: list[str] | None,
                      want_time: bool) -> tuple[np.ndarray, np.ndarray | None, list[str]] | None:
     """Rate columns (N, C) float64, the time column (or None) and the column names of a Parquet
-    file, read column by column with pyarrow (no DataFrame, no copy beyond the (N, C) array).
+    file, read piece by piece with pyarrow (no DataFrame, no copy beyond the (N, C) array). The
+    samples are the view ``buf[:, 1:].T`` of a :func:`workbench.analysis.allan.rate_buffer`
+    (``buf`` (C, N + 1)), so the phase can take their place (:func:`workbench.analysis.allan.phase`).
 
     None when a chosen column is not numeric: the DataFrame path then names the offending cell.
     """
     import numpy as np
     import pyarrow as pa
     import pyarrow.parquet as pq
+
+    from workbench.analysis.allan import rate_buffer
 
     try:
         pf = pq.ParquetFile(path)
@@ -130,20 +135,39 @@ def _parquet_columns(path: Path, columns: list[str] | None,
     if not all(numeric(c) for c in cols):
         return None
     n = pf.metadata.num_rows
-    y = np.empty((len(cols), n))  # channel-major: each column copied contiguously; returned as the (N, C) view
+    buf = rate_buffer(n, len(cols))  # channel-major, column 0 spare: the phase can be integrated in place
     t = np.empty(n) if want_time and time_col is not None else None
+    wanted = cols + ([time_col] if t is not None else [])
     try:
-        for j, c in enumerate(cols):
-            _fill(pf.read(columns=[c], use_threads=False).column(0), y[j])
-        if t is not None:
-            _fill(pf.read(columns=[time_col], use_threads=False).column(0), t)
+        start = 0
+        for table in _pieces(pf, wanted):
+            for j in range(len(cols)):
+                _fill(table.column(j), buf[j, 1 + start:])
+            if t is not None:
+                _fill(table.column(len(cols)), t[start:])
+            start += table.num_rows
     except Exception as exc:
         raise AnalysisError(f"{path}: cannot read samples ({type(exc).__name__}: {str(exc)[:120]})") from None
-    return y.T, t, cols
+    return buf[:, 1:].T, t, cols
+
+
+def _pieces(pf, columns: list[str]):
+    """The file's rows in order, as pyarrow tables of ``columns``: one per row group when the groups
+    are small (:data:`PIECE_ROWS`), else batches of that many rows. Decoding a piece into the memory
+    pyarrow just released is several times faster than decoding whole columns into fresh memory."""
+    meta = pf.metadata
+    if all(meta.row_group(i).num_rows <= PIECE_ROWS for i in range(meta.num_row_groups)):
+        for i in range(meta.num_row_groups):
+            yield pf.read_row_group(i, columns=columns, use_threads=False)
+    else:
+        import pyarrow as pa
+
+        for batch in pf.iter_batches(batch_size=PIECE_ROWS, columns=columns, use_threads=False):
+            yield pa.Table.from_batches([batch])
 
 
 def _fill(column, out: np.ndarray) -> None:
-    """Copy a numeric pyarrow ChunkedArray into ``out`` (n,) float64, nulls as NaN.
+    """Copy a numeric pyarrow ChunkedArray into the start of ``out`` float64, nulls as NaN.
 
     From the chunks' data buffers: pyarrow's own ``to_numpy`` imports pandas (~0.5 s).
     """
