@@ -15,8 +15,8 @@ compiled kernels of :mod:`workbench.analysis.allan_kernels` (numba: cache-sized 
 per block, no temporaries the size of the record), whose ~0.9 s start-up only they repay. Both
 equal allantools' ``oadev``/``ohdev``/``mdev`` (tested to a relative 1e-9).
 
-Public: :func:`deviation`, :func:`segment_deviation`, :func:`averaging_factors`, :func:`phase`, :func:`prepare_rate_data`,
-:class:`DeviationCurve`, :data:`KINDS`.
+Public: :func:`deviation`, :func:`segment_deviation`, :func:`averaging_factors`, :func:`phase`, :func:`rate_buffer`,
+:func:`prepare_rate_data`, :func:`column_median`, :class:`DeviationCurve`, :data:`KINDS`.
 References: thesis (shared/seeds/000_...) sec. 1.2 (Allan variance analysis of tables 1.1-4.1);
 IEEE Std 952-1997 Annex C; NIST SP 1065.
 """
@@ -150,9 +150,17 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(edges[::2].tolist(), edges[1::2].tolist()))
 
 
+def column_median(y: np.ndarray) -> np.ndarray:
+    """Column medians (C,) of finite y (n, C), as ``np.median(y, axis=0)`` (whose NaN check imports
+    numpy.ma, ~0.1 s of the command's start-up)."""
+    k = len(y) // 2
+    part = np.partition(y, [k - 1, k] if len(y) % 2 == 0 and k > 0 else [k], axis=0)
+    return part[k] if len(y) % 2 else 0.5 * (part[k - 1] + part[k])
+
+
 def _check_magnitude(y: np.ndarray, columns, source: str, quantity: str) -> None:
     """A static record's mean rate beyond any sensor's bias means a wrong declared unit."""
-    med = np.median(y, axis=0)
+    med = column_median(y)
     limit, unit, hint = {"gyro": (0.5, "rad/s", "deg/s declared as rad/s?"),
                          "accel": (30.0, "m/s^2", "g or mg declared as m/s^2?")}[quantity]
     worst = int(np.argmax(np.abs(med)))
@@ -160,7 +168,7 @@ def _check_magnitude(y: np.ndarray, columns, source: str, quantity: str) -> None
         raise AnalysisError(f"{source}: column {columns[worst]}: median {med[worst]:.4g} {unit} is implausible "
                             f"for a static {quantity} record ({hint})")
     if quantity == "accel" and y.shape[1] == 3:
-        norm = float(np.median(np.linalg.norm(y, axis=1)))
+        norm = float(column_median(np.linalg.norm(y, axis=1)[:, None])[0])
         if not 3.0 < norm < 30.0:
             raise AnalysisError(f"{source}: columns {', '.join(columns)}: median |a| = {norm:.3g} m/s^2 "
                                 "is not gravity (g or mg declared as m/s^2?)")
@@ -204,7 +212,9 @@ def phase(y: np.ndarray, rate: float, compiled: bool | None = None, overwrite: b
         y = y[:, None]
     target = _phase_target(y) if overwrite else None
     x = target if target is not None else np.empty((y.shape[1], y.shape[0] + 1))
-    if target is None and (compiled if compiled is not None else (y.size > COMPILED_WORK / 20 and y.flags.c_contiguous)):
+    if compiled is None:
+        compiled = y.size > COMPILED_WORK / 20 and y.flags.c_contiguous
+    if target is None and compiled:
         from workbench.analysis import allan_kernels as kern
 
         x[:, 0] = 0.0

@@ -41,11 +41,13 @@ def rate_from_time(t: np.ndarray, source: str) -> tuple[float, np.ndarray]:
     """
     import numpy as np
 
+    from workbench.analysis.allan import column_median
+
     dt = np.diff(np.asarray(t, float))
     if len(dt) == 0 or np.any(~np.isfinite(dt)) or np.any(dt <= 0):
         row = int(np.argmax(~(dt > 0))) + 1 if len(dt) else 0
         raise AnalysisError(f"{source}: time column is not strictly increasing (row {row})")
-    nominal = float(np.median(dt))
+    nominal = float(column_median(dt[:, None])[0])
     gaps = np.flatnonzero(dt > 1.5 * nominal)
     regular = np.delete(dt, gaps)
     spread = float(np.max(np.abs(regular - nominal)) / nominal)
