@@ -43,3 +43,21 @@ def test_bad_statistic_and_bad_number_are_one_line_errors(tmp_path, capsys):
     data.write_text("1\n2\n3\n4\n5\n")
     assert main(["allan", str(data), "--stat", "xdev", "--rate", "1"]) == 2
     assert "xdev" in capsys.readouterr().err
+
+
+def test_every_tau_prints_plain_columns_and_equals_the_per_lag_sums(tmp_path, capsys):
+    """``--taus all`` on 1000 samples: 249 rows (stop ratio 4) printed as aligned text, not a Rich
+    table; the one-call kernel equals allantools' per-lag oadev (relative 1e-9)."""
+    import allantools
+
+    y = np.random.default_rng(5).standard_normal(1000)
+    (tmp_path / "y.txt").write_text("\n".join(map(repr, y.tolist())))
+    out = tmp_path / "all.csv"
+    assert main(["allan", str(tmp_path / "y.txt"), "--stat", "oadev", "--rate", "2", "--taus", "all",
+                 "--out", str(out)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[1].split()[:3] == ["column", "tau", "s"] and sum(s.startswith("data ") for s in lines) == 249
+    df = pd.read_csv(out)
+    assert df["tau"].tolist() == (np.arange(1, 250) / 2.0).tolist()
+    _, ref, _, _ = allantools.oadev(y, 2.0, "freq", np.arange(1, 250) / 2.0)
+    np.testing.assert_allclose(df["dev"], ref, rtol=1e-9)
