@@ -46,7 +46,7 @@ def test_bad_statistic_and_bad_number_are_one_line_errors(tmp_path, capsys):
 
 
 def test_every_tau_prints_plain_columns_and_equals_the_per_lag_sums(tmp_path, capsys):
-    """``--taus all`` on 1000 samples: 249 rows (stop ratio 4) printed as aligned text, not a Rich
+    """``--taus all`` on 1000 samples: 250 rows (stop ratio 4: m up to 1000 // 4) printed as aligned text, not a Rich
     table; the one-call kernel equals allantools' per-lag oadev (relative 1e-9)."""
     import allantools
 
@@ -56,8 +56,8 @@ def test_every_tau_prints_plain_columns_and_equals_the_per_lag_sums(tmp_path, ca
     assert main(["allan", str(tmp_path / "y.txt"), "--stat", "oadev", "--rate", "2", "--taus", "all",
                  "--out", str(out)]) == 0
     lines = capsys.readouterr().out.splitlines()
-    assert lines[1].split()[:3] == ["column", "tau", "s"] and sum(s.startswith("data ") for s in lines) == 249
+    assert lines[1].split()[:3] == ["column", "tau", "s"] and sum(s.startswith("data ") for s in lines) == 250
     df = pd.read_csv(out)
-    assert df["tau"].tolist() == (np.arange(1, 250) / 2.0).tolist()
-    _, ref, _, _ = allantools.oadev(y, 2.0, "freq", np.arange(1, 250) / 2.0)
+    assert df["tau"].tolist() == (np.arange(1, 251) / 2.0).tolist()
+    _, ref, _, _ = allantools.oadev(y, 2.0, "freq", np.arange(1, 251) / 2.0)
     np.testing.assert_allclose(df["dev"], ref, rtol=1e-9)
