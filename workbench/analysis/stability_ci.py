@@ -9,16 +9,25 @@ kept, so long-tau intervals are never narrower than either reading).
 
 EDF: Greenhall & Riley (2003) for the finite-difference statistics (adev / hdev: S = 1,
 oadev / ohdev: S = m, mdev / tdev: F = 1; :func:`workbench.analysis.allan_ci.edf_greenhall`),
-with the counts of used pairs when gaps were skipped; totdev and mtotdev / ttotdev from NIST
-SP 1065 tables 7 and 8 (edf = b T / tau - c), mtotdev / ttotdev below m = 10 with the Greenhall
-MDEV EDF instead: table 8 overstates the EDF there (Monte Carlo coverage of white PM at m = 1:
-0.71 with it), and the EDF implied by Stable32's PHASE.DAT bounds is the MDEV's (x 1.012) at
-m = 1-8, then ~1.2x table 8 from m = 10 (docs/allan.md); Theo1 / TheoH beyond the oadev part from Howe &
-Tasset's Theo1 EDF (SP 1065 table 11); htotdev with the ohdev EDF (fewer degrees of freedom than
-its own: wider, conservative). MTIE and TIE rms get no interval (NaN). The interval is the
-chi-squared one at two-sided ``level``.
+with the counts of used pairs when gaps were skipped. The total family, with N the number of
+phase points (T = N tau0, as Stable32):
 
-Public: :class:`StabilityCI`, :func:`intervals`, :func:`edf_of`.
+* totdev, FM noise: NIST SP 1065 table 7, edf = b N / m - c; below m = 4 at most the OADEV's
+  (at m = 1 TOTDEV is the OADEV: table 7 claims 1.5 N there, twice a white-FM record's 2N / 3).
+  PM noise: the OADEV's.
+* mtotdev / ttotdev: below m = 10 the Greenhall MDEV EDF (as Stable32), from m = 10 SP 1065
+  table 8 (edf = b N / m - c). Stable32 uses larger coefficients there (its bounds imply
+  b = 1.33, c = 1.89 for white FM, 1.73 / 2.99 for flicker PM, against table 8's 1.10 / 1.2 and
+  1.20 / 1.40), which the Monte Carlo EDF of the same estimator does not support
+  (benchmarks/allan_ci_edf.py): ours are the wider.
+* htotdev: at m = 1 (where it is the OHDEV) the OHDEV's; below m = 16, and for PM noise at every
+  m, the simple formulas of SP 1065 (Howe, Allan & Barnes), from m = 16 for FM noise Howe et
+  al.'s (PTTI 2000) edf = (N / m) / (b0 + b1 m / N); noise steeper than random-walk FM: the OHDEV's.
+* Theo1 / TheoH beyond the oadev part: Howe & Tasset's Theo1 EDF (SP 1065), r = 0.75 m.
+
+MTIE and TIE rms get no interval (NaN). The interval is the chi-squared one at two-sided ``level``.
+
+Public: :class:`StabilityCI`, :func:`intervals`, :func:`edf_of`, :func:`edf_simple`.
 """
 
 from __future__ import annotations
@@ -27,18 +36,22 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from workbench.analysis.allan_ci import chi2_ppf, edf_greenhall, noise_id_spread
+from workbench.analysis.allan_ci import MAX_POINTS_ID, chi2_ppf, edf_greenhall, noise_id_spread
 from workbench.analysis.stability import Stability
 
 AMBIGUOUS_SE = 1.0  # standard errors of the lag-1 alpha within which a second noise type is considered
+FLICKER_AVERAGED = 1.5  # alpha on the block-averaged phase below which "white PM" is flicker PM
 MIN_POINTS_LAG1 = 30  # decimated points for the lag-1 method (Riley & Greenhall: reliable from ~30)
 _GREENHALL = {"adev": (2, False, False), "oadev": (2, True, False), "mdev": (2, True, True),
-              "tdev": (2, True, True), "hdev": (3, False, False), "ohdev": (3, True, False),
-              "htotdev": (3, True, False)}  # d, overlapping (S = m), modified (F = 1)
+              "tdev": (2, True, True), "hdev": (3, False, False), "ohdev": (3, True, False)}
+# d, overlapping (S = m), modified (F = 1)
 _TOT = {0: (1.50, 0.0), -1: (1.17, 0.22), -2: (0.93, 0.36)}  # SP 1065 table 7, alpha: (b, c)
 _MTOT = {2: (1.90, 2.1), 1: (1.20, 1.40), 0: (1.10, 1.2), -1: (0.85, 0.50), -2: (0.75, 0.31)}  # table 8
+_HTOT = {0: (0.559, 1.004), -1: (0.868, 1.140), -2: (0.938, 1.696)}  # Howe et al. 2000, alpha: (b0, b1)
 NO_INTERVAL = ("mtie", "tierms")
+TOT_OADEV_BELOW = 4  # totdev below this m: at most the OADEV's EDF
 MTOT_MDEV_BELOW = 10  # mtotdev / ttotdev below this m take the Greenhall MDEV EDF
+HTOT_FROM = 16  # htotdev from this m (FM noise) takes Howe's HTOT EDF
 
 
 @dataclass(frozen=True)
@@ -60,13 +73,27 @@ def _theo1_edf(alpha: int, n: int, m: int) -> float:
     if alpha == 2:
         return 0.86 * (n + 1) * (n - 4.0 * r / 3.0) / (n - r) * r / (r + 1.14)
     if alpha == 1:
-        return (4.798 * n ** 2 - 6.374 * n * r + 12.387 * r) / (np.sqrt(r + 36.6) * (n - r) * (r + 0.3))
+        return (4.798 * n ** 2 - 6.374 * n * r + 12.387 * r) / (np.sqrt(r + 36.6) * (n - r)) * r / (r + 0.3)
     if alpha == 0:
         return ((4.1 * n + 0.8) / r - (3.1 * n + 6.5) / n) * r ** 1.5 / (r ** 1.5 + 5.2)
     if alpha == -1:
         return (2.0 * n ** 2 - 1.3 * n * r - 3.5 * r) / (n * r) * r ** 3 / (r ** 3 + 2.3)
     return (4.4 * n - 2.0) / (2.9 * r) * ((4.4 * n - 1) ** 2 - 8.6 * r * (4.4 * n - 1) + 11.4 * r ** 2) \
         / (4.4 * n - 3) ** 2
+
+
+def edf_simple(alpha: int, n: int, m: int) -> float:
+    """The simple EDF formulas of NIST SP 1065 (Howe, Allan & Barnes 1981) for noise exponent
+    ``alpha`` (2 .. -2) at factor ``m`` on ``n`` phase points (as allantools' ``edf_simple``)."""
+    if alpha == 2:
+        return (n + 1) * (n - 2 * m) / (2.0 * (n - m))
+    if alpha == 1:
+        return float(np.exp(np.sqrt(np.log((n - 1) / (2.0 * m)) * np.log((2 * m + 1) * (n - 1) / 4.0))))
+    if alpha == 0:
+        return (3.0 * (n - 1) / (2 * m) - 2.0 * (n - 2) / n) * 4 * m ** 2 / (4 * m ** 2 + 5)
+    if alpha == -1:
+        return 2.0 * (n - 2) / (2.3 * n - 4.9) if m == 1 else 5.0 * n ** 2 / (4 * m * (n + 3 * m))
+    return (n - 2.0) / m * ((n - 1) ** 2 - 3.0 * m * (n - 1) + 4.0 * m ** 2) / (n - 3.0) ** 2
 
 
 def edf_of(stat: str, alpha: int, m: int, n_phase: int, n_used: int | None = None) -> float:
@@ -86,15 +113,24 @@ def edf_of(stat: str, alpha: int, m: int, n_phase: int, n_used: int | None = Non
         a = max(alpha, 1 - 2 * d + 1)  # Greenhall needs alpha + 2d > 1
         return edf_greenhall(a, d, int(m), int(n_phase), overlapping, modified)
     if stat == "totdev":
-        b, c = _TOT.get(alpha, _TOT[0] if alpha > 0 else _TOT[-2])
+        oadev = edf_greenhall(max(alpha, -2), 2, int(m), int(n_phase), True, False)
         if alpha > 0:  # phase noise: totdev behaves as oadev there
-            return edf_greenhall(alpha, 2, int(m), int(n_phase), True, False)
-        return b * (n_phase - 1) / m - c
+            return oadev
+        b, c = _TOT[max(alpha, -2)]
+        table = b * n_phase / m - c
+        return min(table, oadev) if m < TOT_OADEV_BELOW else table
     if stat in ("mtotdev", "ttotdev"):
         if m < MTOT_MDEV_BELOW:  # short taus: the MDEV's degrees of freedom (see the module docstring)
             return edf_greenhall(max(alpha, -2), 2, int(m), int(n_phase), True, True)
         b, c = _MTOT[int(np.clip(alpha, -2, 2))]
-        return b * (n_phase - 1) / m - c
+        return b * n_phase / m - c
+    if stat == "htotdev":
+        if m == 1 or alpha < -2:  # htotdev is the ohdev at m = 1; no total formula below RW FM
+            return edf_greenhall(max(alpha, -4), 3, int(m), int(n_phase), True, False)
+        if m < HTOT_FROM or alpha > 0:
+            return edf_simple(alpha, n_phase, m)
+        b0, b1 = _HTOT[alpha]
+        return n_phase / m / (b0 + b1 * m / n_phase)
     if stat in ("theo1", "theoh"):
         return _theo1_edf(int(np.clip(alpha, -2, 2)), n_phase, m)
     raise ValueError(stat)
@@ -103,17 +139,28 @@ def edf_of(stat: str, alpha: int, m: int, n_phase: int, n_used: int | None = Non
 def _identify(x: np.ndarray, m: np.ndarray, dmax: int) -> tuple[np.ndarray, np.ndarray]:
     """Rounded alpha per factor from the lag-1 ACF of the decimated phase (NaN: too few points),
     and, where the estimate lies within AMBIGUOUS_SE standard errors of the white / flicker PM
-    boundary, the other of the two (else the same value)."""
+    boundary, the other of the two (else the same value).
+
+    White PM read on the decimated phase is checked on the phase averaged over blocks of m:
+    decimation folds flicker PM's power above the new Nyquist frequency into a white floor (on
+    64 decimated points flicker PM reads as white in ~90 % of records, and the white-PM EDF is
+    ~4x too large), averaging does not; white PM stays white (alpha ~2) after averaging, flicker PM
+    reads ~0.6 there, so below FLICKER_AVERAGED the exponent is flicker PM."""
     out = np.full(len(m), np.nan)
     other = np.full(len(m), np.nan)
     lo_a = -2 if dmax == 2 else -4
     finite = np.isfinite(x)
     xs = x if finite.all() else np.interp(np.arange(len(x)), np.flatnonzero(finite), x[finite])
     for k, mk in enumerate(m):
-        z = xs[::int(mk)][:1 << 16]
+        mk = int(mk)
+        z = xs[::mk][:MAX_POINTS_ID]
         if len(z) >= MIN_POINTS_LAG1:
             a, se = noise_id_spread(z, dmax)
             out[k] = float(np.clip(np.round(a), lo_a, 2))
+            if out[k] == 2 and mk > 1:
+                blocks = min(len(xs) // mk, MAX_POINTS_ID)
+                if noise_id_spread(xs[:blocks * mk].reshape(blocks, mk).mean(axis=1), dmax)[0] < FLICKER_AVERAGED:
+                    out[k] = a = 1.0
             ends = [float(np.clip(np.round(a + s * AMBIGUOUS_SE * se), lo_a, 2)) for s in (-1.0, 1.0)]
             # only white vs flicker PM, where the lag-1 method is weakest (the other pairs stay as
             # identified: their types agree with Stable32's and their coverage is within 95 +- 2 %)
@@ -144,7 +191,7 @@ def intervals(curve: Stability, x: np.ndarray, level: float = 0.95, alpha: np.nd
         stat = curve.stat
         if theo_part:
             stat = "theo1" if curve.tau[k] != curve.m[k] / curve.rate else "oadev"
-        gaps = curve.stat in _GREENHALL and curve.stat != "htotdev"
+        gaps = curve.stat in _GREENHALL
         edf[k] = edf_of(stat, int(alpha[k]), int(curve.m[k]), curve.n_phase, int(curve.n[k]) if gaps else None)
     edf = np.maximum(edf, 1e-3)
     q = (1.0 - level) / 2.0
