@@ -45,14 +45,34 @@ def test_offset_and_gyro_bias_against_truth(tumble, delay_s):
     # the 20-mrad mag-to-IMU rotation and the gyro's scale errors, smooth in time, which the scaling covers
     assert abs(timing.delay_s - delay_s) < 4 * timing.delay_sigma
     assert timing.delay_sigma < 0.003  # 3 ms: a quarter of a 75-Hz magnetometer period
-    assert np.all(np.abs(timing.bias - _gyro_bias(truth)) < 4 * timing.bias_sigma)
+    assert np.all(np.abs(timing.gyro_bias() - _gyro_bias(truth)) < 4 * timing.bias_sigma)
     assert timing.significant == (delay_s > 0)
+
+
+def test_gyro_gain_seen_by_the_field_against_truth(tumble):
+    from scipy.spatial.transform import Rotation
+
+    from workbench.analysis.mag_fit import polar_rotation
+
+    t, c, truth = tumble
+    rough = mag_ellipsoid.fit_algebraic_plain(c["m"])
+    timing = mag_motion.fit_timing([(t, c["m"], c["g"], np.ones(len(t), bool))], rough.compensate)
+    zero = np.zeros((3, 3))
+    bm = truth.unit.mag.apply(zero, None, np.full(3, T_REF))[0]
+    a_mag = (truth.unit.mag.apply(np.eye(3), None, np.full(3, T_REF)) - bm).T
+    bg = truth.unit.gyro.apply(zero, zero, np.full(3, T_REF))[0]
+    a_gyro = (truth.unit.gyro.apply(np.eye(3), zero, np.full(3, T_REF)) - bg).T
+    # the rough (symmetric) ellipsoid leaves the mag's rotation U (I + M = P U) in its axes: h' = U h, and the gyro
+    # reads A_g w + b_g, so the field turns at U A_g^-1 (w_meas - b_g): K = U A_g^-1, within 4 of its sigmas
+    k_true = Rotation.from_rotvec(polar_rotation(a_mag)[1]).as_matrix() @ np.linalg.inv(a_gyro)
+    assert timing.observes_gain and np.all(np.abs(timing.gain - k_true) < 4 * timing.gain_sigma)
+    assert np.all(timing.gain_sigma < 0.01)
 
 
 def test_gravity_tracked_through_the_motion_beats_the_accelerometer(tumble):
     t, c, truth = tumble
     a = truth.unit.accel.compensate(c["a"])
-    d, tracked = mag_motion.track_down(t, a, c["g"], _gyro_bias(truth), np.zeros(len(t), bool))
+    d, tracked = mag_motion.track_down(t, a, c["g"] - _gyro_bias(truth), np.zeros(len(t), bool))
     true_down = truth.attitude.inv().apply(np.array([0.0, 0.0, 1.0]))
 
     def err(x):
@@ -72,7 +92,7 @@ def test_a_saturated_gyro_restarts_the_tracker():
     g = np.zeros((1000, 3))
     restart = np.zeros(1000, bool)
     restart[500] = True
-    _, tracked = mag_motion.track_down(t, a, g, np.zeros(3), restart)
+    _, tracked = mag_motion.track_down(t, a, g, restart)
     # tracked: at least SETTLE_TC * tc = 1 s after the start / a restart and before the end / the next restart
     expect = ((t >= 1.0) & (t <= 3.99)) | ((t >= 6.01) & (t <= 8.99))
     assert np.array_equal(tracked, expect)

@@ -174,10 +174,6 @@ def free_points(session: Session, block_s: float = BLOCK_S, reject_spikes: bool 
         ok_a = session.good("accel", st.index)
         if timing is not None and timing.significant and ok_m.sum() > 1:
             m, ok_m = mag_motion.shift(t, m, ok_m, timing.delay_s)
-        if timing is not None and len(t) > 1:
-            down, tracked = mag_motion.track_down(t, a, g, timing.bias, ~ok_g)
-        else:
-            down, tracked = down_direction(a), np.zeros(len(t), bool)
         still = np.zeros(len(df), bool)
         if len(df) >= max(3, int(0.5 * session.sample_rate_hz)):
             found = stationarity.detect(g, a, session.sample_rate_hz)
@@ -186,6 +182,11 @@ def free_points(session: Session, block_s: float = BLOCK_S, reject_spikes: bool 
             still_s += float(still.sum() / session.sample_rate_hz)
             if still.any():
                 norms_still.append(np.linalg.norm(a[still & ok_a], axis=1))
+        down, tracked = down_direction(a), np.zeros(len(t), bool)
+        if timing is not None and len(t) > 1:
+            # where the unit is still the accelerometer alone gives gravity; the tracker carries it through the motion
+            moving, tracked = mag_motion.track_down(t, a, timing.rate(g), ~ok_g)
+            down = np.where(still[:, None], down, moving)
         # raw-sample spikes only where the unit is still: in motion a running median cannot tell a spike from the
         # hand's turn (the robust fit's outlier rejection of points covers those)
         if reject_spikes and still.sum() > mag_spikes.WINDOW:
