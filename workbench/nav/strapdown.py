@@ -136,17 +136,27 @@ def gain_weight(mu: float, c0: float, c1: float) -> float:
 
 def sequential_update(P: np.ndarray, H: np.ndarray, z: np.ndarray, r: np.ndarray,
                       scaling: tuple[float, float] | None = None,
-                      unscaled: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                      unscaled: np.ndarray | None = None,
+                      cross: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Kalman measurement update, one scalar measurement at a time (diagonal R).
 
     ``P`` (n, n) prior covariance; ``H`` (m, n); ``z`` (m,) innovations of the error state
     (measurement minus prediction at zero error); ``r`` (m,) variances. With ``scaling =
     (c0, c1)`` each gain is scaled by :func:`gain_weight` of its normalised innovation
     (paper 001 eq. 46), except the rows where ``unscaled`` (m,) is True. The covariance uses
-    the Joseph form, valid for any (scaled) gain.
+    the Joseph form, valid for any (scaled) gain. ``cross`` (n, m): the covariance ``E[δx vᵀ]`` of
+    the prior error with the measurement noises, when the noise that drove the state over the last
+    step is also in the measurement (a gyro mean the attitude has just integrated); the noises are
+    then states of their own, ``[δx; v]`` with covariance ``[[P, cross], [crossᵀ, R]]``, measured
+    without noise by ``[H, I]`` (the batch form is Simon, *Optimal State Estimation*, sec. 7.1).
     Returns the posterior covariance, the error-state estimate (n,) and the weights (m,).
     """
     n = P.shape[0]
+    if cross is not None:
+        m = len(z)
+        aug = np.block([[P, cross], [np.asarray(cross).T, np.diag(r)]])
+        aug, dx, weights = sequential_update(aug, np.hstack([H, np.eye(m)]), z, np.zeros(m), scaling, unscaled)
+        return aug[:n, :n], dx[:n], weights
     eye = np.eye(n)
     if scaling is None:  # no per-measurement weights: one batch update gives the same result
         gain = np.linalg.solve(H @ P @ H.T + np.diag(r), H @ P).T
