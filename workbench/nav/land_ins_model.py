@@ -11,7 +11,7 @@ the compensated output ``(I - Ŝ)(y - b̂)`` (true minus estimated, like the bia
 in :mod:`workbench.nav.land_ins`.
 
 Public: :data:`N_STATES`, the slices ``P_, V_, A_, BA, BG, BW, LA, SG, SA``, :class:`GradeErrors`,
-:func:`grade_errors`, :class:`LandInsConfig`, :func:`scale_columns`, :func:`error_dynamics`,
+:func:`grade_errors`, :func:`in_run_rrw`, :class:`LandInsConfig`, :func:`scale_columns`, :func:`error_dynamics`,
 :func:`discretise`, :func:`nhc_jacobian`.
 """
 
@@ -54,18 +54,34 @@ class GradeErrors:
     accel_misalignment: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
 
-def grade_errors(spec, bias_correlation_s: float = 3600.0) -> GradeErrors:
+def grade_errors(spec, bias_correlation_s: float = 3600.0, in_run_bias_s: float | None = None) -> GradeErrors:
     """The errors a grade (``workbench.grades.SensorSpec``) tells the filter: table 3-1's bias,
     scale factor, misalignment and noise; the bias random walk ``sqrt(rrw² + B² / τ)`` from the
-    grade's rate random walk and bias instability (as ``workbench.nav.compensate.process_noise``)."""
+    grade's rate random walk and bias instability (as ``workbench.nav.compensate.process_noise``).
+
+    ``in_run_bias_s``: the grade's bias (table 3-1's "Bias" / "Rate Bias") is also an in-run
+    bias that is drawn anew over that time, a random walk of density ``bias √(2 / in_run_bias_s)``
+    added to the above (the rate of a first-order Gauss-Markov bias of that sigma and correlation
+    time, for times well below it). Paper 001 drives its bias states with a "bias instability
+    noise parameter" (eq. 4-5) whose value table 3-1 does not give: :func:`in_run_rrw` and
+    docs/navigation.md, "Table 4-1 and eq. 49".
+    """
     g, a = spec.specs["gyro"], spec.specs["accel"]
 
     def rw(ts):
-        return np.sqrt(ts.noise.rrw ** 2 + ts.noise.bias_instability ** 2 / bias_correlation_s)
+        return np.sqrt(ts.noise.rrw ** 2 + ts.noise.bias_instability ** 2 / bias_correlation_s
+                       + in_run_rrw(ts.bias, in_run_bias_s) ** 2)
 
     return GradeErrors(np.asarray(a.bias, float), np.asarray(g.bias, float), a.noise.white, g.noise.white,
                        rw(a), rw(g), np.asarray(g.scale_factor, float), np.asarray(g.misalignment, float),
                        np.asarray(a.scale_factor, float), np.asarray(a.misalignment, float))
+
+
+def in_run_rrw(bias: np.ndarray, in_run_bias_s: float | None) -> np.ndarray:
+    """Bias random-walk density (SI/√s) that draws a bias of 1-sigma ``bias`` anew over ``in_run_bias_s`` s
+    (``bias √(2 / τ)``; zeros for None)."""
+    bias = np.asarray(bias, float)
+    return np.zeros_like(bias) if in_run_bias_s is None else bias * np.sqrt(2.0 / in_run_bias_s)
 
 
 @dataclass(frozen=True)
