@@ -8,7 +8,10 @@
   analysis of :func:`workbench.nav.land_ins.covariance_analysis` for 8 constant heading rates
   (chosen here, the paper does not give them: 0, 0.0125, 0.025, 0.125, 0.3, 0.45, 0.6 and 1 °/s,
   i.e. 0-3600° of heading change in the hour) x the two grades of table 3-1, each after the
-  pre-calibration profile, 1 h at 20 m/s; CEP after the hour and the fit of eq. 49;
+  pre-calibration profile, 1 h at 20 m/s; CEP after the hour and the fit of eq. 49; twice: with
+  table 3-1's bias a turn-on constant (our grade fixtures) and with it also an in-run bias drawn
+  anew over ``--in-run-bias-h`` hours (paper 001's bias instability noise of eq. 4-5, whose value
+  the paper does not give), each with the error budget of the straight case;
 * ``--filter-speed``: CPU time of one 1-h 100 Hz land-INS filter run (the target is 30 s on one core);
 * ``--monte-carlo RUNS [--scheduler local|tcp://HOST:PORT] [--cruise-s S]``: the sampled Monte Carlo
   of table 4-1 on Dask with a progress bar, resumable (``--mc-dir``).
@@ -96,29 +99,40 @@ def eq49_fit(ceps: dict[str, list[float]], label: str) -> dict:
     return fits
 
 
-def covariance_table(latitude_deg: float = 40.0, states: int = 20) -> dict:
-    """Paper 001 table 4-1 (CEP after 1 h) by covariance analysis of a ``states`` filter, and the eq. 49 fit."""
-    from scipy.optimize import curve_fit
+def _bias_label(in_run_bias_s: float | None) -> str:
+    return ("table 3-1 bias a turn-on constant" if in_run_bias_s is None
+            else f"table 3-1 bias also in-run, drawn anew over {in_run_bias_s / 3600:g} h")
 
+
+def covariance_table(latitude_deg: float = 40.0, states: int = 20, in_run_bias_s: float | None = None,
+                     nhc_sigma: float = 0.05) -> dict:
+    """Paper 001 table 4-1 (CEP after 1 h) by covariance analysis of a ``states`` filter, and the eq. 49 fit;
+    ``in_run_bias_s``: the grade's bias also an in-run random walk (``grade_errors``); the straight cases'
+    error budget (the 1-sigma each error source leaves at the end, metres north / east)."""
     from workbench.grades import load_spec
     from workbench.nav.land_ins import LandInsConfig, covariance_analysis, grade_errors
     from workbench.sim.roads import constant_rate_drive
     from workbench.sim.trajectory import generate, leg_from_dict
 
-    out = {}
+    out, budgets = {}, {}
+    cfg = LandInsConfig(states=states, nhc_sigma=nhc_sigma)
     t_cpu, t_wall = time.process_time(), time.perf_counter()
     for grade in SEED_4_1:
-        ge = grade_errors(load_spec(grade))
+        ge = grade_errors(load_spec(grade), in_run_bias_s=in_run_bias_s)
         ceps = []
         for rate in RATES_DPS:
             legs = [leg_from_dict(d) for d in constant_rate_drive(rate)]
             tr = generate(legs, 1.0, np.radians(latitude_deg), np.radians(33.0), 900.0)
-            ceps.append(covariance_analysis(tr, ge, LandInsConfig(states=states))["cep_m"])
+            res = covariance_analysis(tr, ge, cfg, budget=rate == 0.0)
+            ceps.append(res["cep_m"])
+            if rate == 0.0:
+                budgets[grade] = {k: np.sqrt(np.clip(np.diag(v)[:2], 0.0, None)).tolist()
+                                  for k, v in res["budget"].items()}
         out[grade] = ceps
     t_cpu, t_wall = time.process_time() - t_cpu, time.perf_counter() - t_wall
     dpsi = 3600.0 * np.asarray(RATES_DPS)
-    print(f"\npaper 001 table 4-1: CEP after 1 h at 20 m/s (covariance analysis, {states} states, 16 cases: "
-          f"{t_cpu:.1f} s CPU, "
+    print(f"\npaper 001 table 4-1: CEP after 1 h at 20 m/s (covariance analysis, {states} states, NHC "
+          f"{nhc_sigma:g} m/s, {_bias_label(in_run_bias_s)}; 16 cases: {t_cpu:.1f} s CPU, "
           f"{t_wall:.1f} s wall; target 60 s)")
     print(f"{'traj':>4s} {'rate °/s':>9s} {'Δψ °':>6s} | {'tactical seed':>13s} {'measured':>9s} | "
           f"{'nav seed':>9s} {'measured':>9s}")
@@ -127,9 +141,14 @@ def covariance_table(latitude_deg: float = 40.0, states: int = 20) -> dict:
               f"{out['tactical_low_noise'][i]:9.0f} | {SEED_4_1['navigation_grade'][i]:9.0f} "
               f"{out['navigation_grade'][i]:9.0f}")
 
-    fits = eq49_fit(out, f"covariance, {states} states")
+    fits = eq49_fit(out, f"covariance, {states} states, {_bias_label(in_run_bias_s)}")
+    print("error budget of trajectory 1 (straight), 1-sigma north / east after the hour (m):")
+    for name in budgets["tactical_low_noise"]:
+        cells = "   ".join(f"{budgets[g][name][0]:8.0f} {budgets[g][name][1]:6.0f}" for g in SEED_4_1)
+        print(f"  {name:34s} {cells}")
     return {"rates_dps": list(RATES_DPS), "heading_change_deg": dpsi.tolist(), "cep_m": out, "fit": fits,
-            "states": states, "cpu_s": t_cpu, "wall_s": t_wall}
+            "states": states, "in_run_bias_s": in_run_bias_s, "nhc_sigma_mps": nhc_sigma,
+            "budget_straight_m": budgets, "cpu_s": t_cpu, "wall_s": t_wall}
 
 
 def filter_speed(seed: int = 1) -> float:
@@ -157,7 +176,7 @@ def filter_speed(seed: int = 1) -> float:
 
 
 def monte_carlo(runs: int, scheduler: str, cruise_s: float, out_dir: Path, states: int = 20,
-                deadline: float | None = None) -> dict:
+                deadline: float | None = None, in_run_bias_s: float | None = None) -> dict:
     """Sampled Monte Carlo (``workbench.fleet.land_ins_mc``) of table 4-1 on Dask, resumable in ``out_dir``.
 
     The runs go run index first (run 0 of every case, then run 1, ...), so an interrupted or
@@ -168,7 +187,8 @@ def monte_carlo(runs: int, scheduler: str, cruise_s: float, out_dir: Path, state
     from workbench.fleet.batch import cluster_client
     from workbench.fleet.land_ins_mc import McCase, cep_table, monte_carlo as run_mc
 
-    cases = [McCase(g, r, k, cruise_s, True, states) for k in range(runs) for g in SEED_4_1 for r in RATES_DPS]
+    cases = [McCase(g, r, k, cruise_s, True, states, in_run_bias_s) for k in range(runs) for g in SEED_4_1
+             for r in RATES_DPS]
     if deadline is None:
         with cluster_client(scheduler) as client, Progress() as bar:
             task = bar.add_task("Monte Carlo", total=len(cases))
@@ -183,12 +203,13 @@ def monte_carlo(runs: int, scheduler: str, cruise_s: float, out_dir: Path, state
             print(f"run {k} of every case done ({time.strftime('%H:%M:%S')})", flush=True)
     out = [json.loads(c.path(out_dir).read_text()) for c in cases if c.path(out_dir).exists()]
     table = cep_table(out)
-    print(f"\nsampled Monte Carlo, up to {runs} run(s) per case, {states}-state filter, cruise {cruise_s:g} s "
+    print(f"\nsampled Monte Carlo, up to {runs} run(s) per case, {states}-state filter, cruise {cruise_s:g} s, "
+          f"{_bias_label(in_run_bias_s)} "
           f"(results in {out_dir}); CEP = median final horizontal error:")
     print(f"{'traj':>4s} {'rate °/s':>9s} | {'tactical seed':>13s} {'MC CEP':>9s} {'σ':>8s} {'runs':>4s} | "
           f"{'nav seed':>9s} {'MC CEP':>9s} {'σ':>8s} {'runs':>4s}")
     ceps: dict[str, list[float]] = {g: [] for g in SEED_4_1}
-    suffix = "" if states == 20 else f" s{states}"
+    suffix = ("" if states == 20 else f" s{states}") + ("" if in_run_bias_s is None else f" b{in_run_bias_s:g}")
     for i, rate in enumerate(RATES_DPS):
         cells = []
         for g in SEED_4_1:
@@ -213,10 +234,23 @@ def main() -> None:
     ap.add_argument("--mc-dir", type=Path, default=Path("/tmp/seed_tables_mc"), help="resumable Monte Carlo results")
     ap.add_argument("--states", type=int, default=20, help="filter states: 20 (paper 001), 29 or 38 (+ scale factor "
                     "and misalignment of the gyro / of both triads)")
-    ap.add_argument("--skip-covariance", action="store_true", help="leave out the covariance table")
+    ap.add_argument("--skip-covariance", action="store_true", help="leave out the covariance tables")
+    ap.add_argument("--in-run-bias-h", type=float, default=5.0, metavar="H",
+                    help="second covariance table (and the Monte Carlo with --mc-in-run): table 3-1's bias also "
+                         "in-run, drawn anew over H hours (paper 001's bias instability noise, not in table 3-1; "
+                         "0 = no second table)")
+    ap.add_argument("--mc-in-run", action="store_true", help="the Monte Carlo with the in-run bias of --in-run-bias-h")
+    ap.add_argument("--nhc-sigma", type=float, default=0.05, help="NHC measurement 1-sigma of the covariance "
+                    "tables, m/s (not given by the paper)")
     ap.add_argument("--until", default=None, help="stop the Monte Carlo after the round running at HH:MM UTC")
     args = ap.parse_args()
-    doc = {} if args.skip_covariance else {"table_4_1": covariance_table(states=args.states)}
+    in_run_s = args.in_run_bias_h * 3600.0 if args.in_run_bias_h > 0 else None
+    doc = {}
+    if not args.skip_covariance:
+        doc["table_4_1"] = covariance_table(states=args.states, nhc_sigma=args.nhc_sigma)
+        if in_run_s is not None:
+            doc["table_4_1_in_run_bias"] = covariance_table(states=args.states, in_run_bias_s=in_run_s,
+                                                            nhc_sigma=args.nhc_sigma)
     if not args.skip_lns:
         lns = lns_tables()
         doc["tables_2_8_2_9"] = {m: {v: lns[m][v]["error_pct"] for v in ("sf_state", "no_sf_state")}
@@ -232,7 +266,7 @@ def main() -> None:
             now = time.gmtime()
             deadline = calendar.timegm((now.tm_year, now.tm_mon, now.tm_mday, hh, mm, 0))
         doc["monte_carlo"] = monte_carlo(args.monte_carlo, args.scheduler, args.cruise_s, args.mc_dir, args.states,
-                                         deadline)
+                                         deadline, in_run_s if args.mc_in_run else None)
     if args.out:
         args.out.write_text(json.dumps(doc, indent=1))
 

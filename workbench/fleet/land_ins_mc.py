@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable, Iterable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -30,7 +30,9 @@ import numpy as np
 class McCase:
     """One Monte Carlo run: ``grade`` name, ``rate_dps`` heading rate, ``run`` index (the seed),
     ``cruise_s`` and ``precalibration`` of the drive, ``states`` of the filter (20: paper 001's;
-    29 / 38 with the scale-factor and misalignment states, :mod:`workbench.nav.land_ins_model`)."""
+    29 / 38 with the scale-factor and misalignment states, :mod:`workbench.nav.land_ins_model`);
+    ``in_run_bias_s``: the grade's bias is also drawn anew over that time, in the unit (a rate random
+    walk) and in the filter (``grade_errors(..., in_run_bias_s)``); None = a turn-on constant."""
 
     grade: str
     rate_dps: float
@@ -38,10 +40,13 @@ class McCase:
     cruise_s: float = 3600.0
     precalibration: bool = True
     states: int = 20
+    in_run_bias_s: float | None = None
 
     def path(self, out_dir: Path) -> Path:
-        """Where the outcome of this run is kept (a filter of other than 20 states in its own folder)."""
+        """Where the outcome of this run is kept (a filter of other than 20 states, an in-run bias in its own folder)."""
         top = Path(out_dir) if self.states == 20 else Path(out_dir) / f"states_{self.states}"
+        if self.in_run_bias_s is not None:
+            top = top / f"in_run_bias_{self.in_run_bias_s:g}s"
         return top / self.grade / f"{self.rate_dps:g}" / f"run_{self.run:04d}.json"
 
 
@@ -51,18 +56,22 @@ def run_one(case: McCase) -> dict:
     from workbench.grades import draw_unit, load_spec
     from workbench.nav.compensate import imu_samples
     from workbench.nav.land_ins import LandInsConfig, grade_errors, run_land_ins
+    from workbench.nav.land_ins_model import in_run_rrw
     from workbench.session import Site
     from workbench.sim.roads import constant_rate_drive
     from workbench.sim.vehicle import drive, drive_config
 
     spec = load_spec(case.grade)
     unit = draw_unit(spec, 1000 + case.run)
+    if case.in_run_bias_s is not None:  # the in-run share of the bias: a rate random walk of the unit
+        unit = replace(unit, **{f"{t}_noise": replace(unit.noise_of(t), rrw=np.hypot(
+            unit.noise_of(t).rrw, in_run_rrw(spec.specs[t].bias, case.in_run_bias_s))) for t in ("gyro", "accel")})
     legs = constant_rate_drive(case.rate_dps, 20.0, case.cruise_s, case.precalibration)
     site = Site(40.0, 33.0, 900.0)
     session, truth = drive(drive_config(legs, site, 0.0), unit, 1000 + case.run)
     tr = truth["trajectory"]
     res = run_land_ins(imu_samples(session.samples, session.sample_rate_hz), site.latitude,
-                       float(np.radians(site.longitude_deg)), site.height_m, 0.0, grade_errors(spec),
+                       float(np.radians(site.longitude_deg)), site.height_m, 0.0, grade_errors(spec, in_run_bias_s=case.in_run_bias_s),
                        LandInsConfig(states=case.states))
     k = int(np.searchsorted(tr["t"].to_numpy(), res.t[-1]))
     k = min(k, len(tr) - 1)
@@ -116,13 +125,14 @@ def monte_carlo(cases: Iterable[McCase], out_dir: str | Path, client=None,
 
 def cep_table(outcomes: list[dict]) -> dict:
     """CEP (median final horizontal error, m), median filter sigma (m) and the number of runs per
-    (grade, rate, states); keys ``"<grade> <rate>"`` (20 states) or ``"<grade> <rate> s<states>"``."""
+    (grade, rate, states, in-run bias); keys ``"<grade> <rate>"`` (20 states, constant bias), with
+    ``" s<states>"`` for another filter and ``" b<in_run_bias_s>"`` for an in-run bias."""
     groups: dict = {}
     for o in outcomes:
         c = o["case"]
-        key = (c["grade"], c["rate_dps"], int(c.get("states", 20)))
+        key = (c["grade"], c["rate_dps"], int(c.get("states", 20)), c.get("in_run_bias_s"))
         groups.setdefault(key, []).append((o["final_error_m"], o["final_sigma_m"]))
-    return {f"{g} {r:g}" + ("" if n == 20 else f" s{n}"): {"cep_m": float(np.median([e for e, _ in v])),
-                                                         "sigma_m": float(np.median([s for _, s in v])),
-                                                         "runs": len(v)}
-            for (g, r, n), v in sorted(groups.items())}
+    return {f"{g} {r:g}" + ("" if n == 20 else f" s{n}") + ("" if b is None else f" b{b:g}"):
+            {"cep_m": float(np.median([e for e, _ in v])), "sigma_m": float(np.median([s for _, s in v])),
+             "runs": len(v)}
+            for (g, r, n, b), v in sorted(groups.items(), key=lambda kv: (kv[0][:3], kv[0][3] or 0.0))}
