@@ -121,6 +121,21 @@ def show_sequence(seq: Any) -> None:
     st.dataframe(table.rename(columns=lab_label), width="stretch", hide_index=True)
 
 
+def show_drive(proc: ModuleType, options: Mapping | None = None) -> tuple[float, int]:
+    """Road legs and total time of a drive procedure (``proc.legs(**sequence options)``), shown before it
+    runs; returns (duration s at the legs' target speeds, number of legs)."""
+    from workbench.options import validate
+    from workbench.sim.roads import leg_duration
+
+    legs = proc.legs(**validate(proc, options, "sequence"))
+    duration_s = float(sum(leg_duration(leg) for leg in legs))
+    c1, c2 = st.columns(2)
+    c1.metric("Road legs", len(legs))
+    c2.metric("Total time (drive time)", format_duration(duration_s))
+    st.dataframe(pd.DataFrame(legs), width="stretch", hide_index=True)
+    return duration_s, len(legs)
+
+
 def run_panel(name: str, key: str, context: str, check: Callable[[Any], None] | None = None) -> None:
     """Grade, options, sequence preview, seed and a Start button for procedure ``name`` on the simulated rig.
 
@@ -134,9 +149,13 @@ def run_panel(name: str, key: str, context: str, check: Callable[[Any], None] | 
             return
         if check is not None:
             check(load_spec(grade))
-        seq = build_sequence(proc, grade, options)
-        show_sequence(seq)
+        if getattr(proc, "DRIVE", False):  # the simulated vehicle drives road legs, not a turntable sequence
+            duration_s, n_steps = show_drive(proc, options)
+        else:
+            seq = build_sequence(proc, grade, options)
+            show_sequence(seq)
+            duration_s, n_steps = seq.duration_s, len(seq.expand())
         seed = st.number_input("Seed", value=1, step=1, key=f"{key}.seed")
         if st.button("Start run", key=f"{key}.start"):
-            folder = jobs.start_run(name, grade, int(seed), options, seq.duration_s, len(seq.expand()))
+            folder = jobs.start_run(name, grade, int(seed), options, duration_s, n_steps)
             st.success(f"started: {folder}")

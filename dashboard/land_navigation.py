@@ -77,6 +77,9 @@ def _land_ins(result: dict) -> None:
         st.line_chart(pd.concat(curves).dropna(), x="t_s", y="m", color="curve", height=300)
 
 
+ROAD = {"lns-dead-reckoning": _lns, "land-ins": _land_ins}  # procedure -> its figures from a result dict
+
+
 def land_navigation_section() -> None:
     """The land-navigation section of the Navigation page (stored results of both road procedures)."""
     st.header("Land navigation on the road")
@@ -91,7 +94,4 @@ def land_navigation_section() -> None:
         return
     labels = {f"{r['procedure']} · {r['serial']} · {r['created']}": r for r in results}
     pick = labels[st.selectbox("Result", list(labels), key="nav.land.result")]
-    if pick["procedure"] == "lns-dead-reckoning":
-        _lns(pick["result"])
-    else:
-        _land_ins(pick["result"])
+    ROAD[pick["procedure"]](pick["result"])

@@ -80,14 +80,19 @@ def road(heading_rate_dps: float, cruise_s: float, speed_mps: float, precalibrat
     return constant_rate_drive(heading_rate_dps, speed_mps, cruise_s, precalibration)
 
 
+def legs(**options) -> list[dict]:
+    """The road legs (lab units) the simulated vehicle drives for the sequence ``options``."""
+    o = check_options(NAME, OPTIONS, options, "sequence")
+    return road(o["heading_rate_dps"], o["cruise_s"], o["speed_mps"], o["precalibration"])
+
+
 def record_drive(truth, seed: int, out_dir, **options) -> Session:
     """Simulate the drive of ``options`` with the unit ``truth`` into ``out_dir``; returns the session."""
     from workbench.session import Site, load_session
     from workbench.sim.vehicle import drive, drive_config
 
     o = check_options(NAME, OPTIONS, options, "sequence")
-    legs = road(o["heading_rate_dps"], o["cruise_s"], o["speed_mps"], o["precalibration"])
-    cfg = drive_config(legs, Site(o["latitude_deg"], o["longitude_deg"], o["height_m"]), o["heading0_deg"])
+    cfg = drive_config(legs(**options), Site(o["latitude_deg"], o["longitude_deg"], o["height_m"]), o["heading0_deg"])
     drive(cfg, truth, seed, out_dir, procedure=NAME)
     return load_session(out_dir)
 

@@ -76,17 +76,25 @@ OPTIONS = (
 DEFAULTS = defaults(OPTIONS)
 
 
+def _road(o: dict) -> tuple[list[dict], dict, dict]:
+    """(road legs, odometer, gps) of the checked sequence options ``o``: the ``road`` option, else the thesis drive."""
+    from workbench.sim.roads import thesis_drive
+
+    return thesis_drive(int(o["road_seed"])) if o["road"] is None else (o["road"], {}, {})
+
+
+def legs(**options) -> list[dict]:
+    """The road legs (lab units) the simulated vehicle drives for the sequence ``options``."""
+    return _road(check_options(NAME, OPTIONS, options, "sequence"))[0]
+
+
 def record_drive(truth, seed: int, out_dir, **options) -> Session:
     """Simulate the drive of ``options`` with the unit ``truth`` into ``out_dir``; returns the session."""
     from workbench.session import Site, load_session
-    from workbench.sim.roads import thesis_drive
     from workbench.sim.vehicle import drive, drive_config
 
     o = check_options(NAME, OPTIONS, options, "sequence")
-    if o["road"] is None:
-        road, odo, gps = thesis_drive(int(o["road_seed"]))
-    else:
-        road, odo, gps = o["road"], {}, {}
+    road, odo, gps = _road(o)
     cfg = drive_config(road, Site(float(o["latitude_deg"]), float(o["longitude_deg"]), float(o["height_m"])),
                        float(o["heading0_deg"]), odometer=odo, gps=gps)
     drive(cfg, truth, seed, out_dir, procedure=NAME)

@@ -1,4 +1,4 @@
-"""Navigation: replay a session through the ZUPT alignment or the AHRS, raw vs calibrated.
+"""Navigation: replay a session through the ZUPT alignment, the AHRS or a road filter, raw vs calibrated.
 
 Library calls only: runs are ``workbench run`` (``dashboard.jobs.start_run``; on the simulated rig it
 calibrates the unit first), the analysis is the procedure's ``analyze`` with a calibration set
@@ -10,9 +10,12 @@ import pandas as pd
 import streamlit as st
 
 from dashboard import forms, jobs, results, ui
+from dashboard.land_navigation import ROAD, land_navigation_section
 
 TITLE = "Navigation"
-PROCEDURES = {"zupt-alignment": "ZUPT fine alignment (thesis ch. 3)", "ahrs-table": "AHRS on the table (paper 004)"}
+PROCEDURES = {"zupt-alignment": "ZUPT fine alignment (thesis ch. 3)", "ahrs-table": "AHRS on the table (paper 004)",
+              "lns-dead-reckoning": "AXD-LNS odometer dead reckoning on the road (thesis ch. 2)",
+              "land-ins": "Land INS with NHC, ZUPT and ZARUPT on the road (paper 001)"}
 
 
 def numbers(result) -> pd.DataFrame:
@@ -58,7 +61,10 @@ with tab_result:
             with st.spinner("Replaying the session through the filters ..."):
                 result = registry.procedure(name).analyze(
                     load_session(folder), calibration=ui.store().get_set(labels[choice]), force=force)
-            st.dataframe(numbers(result), hide_index=True, width="stretch")
+            if name in ROAD:
+                ROAD[name](result.result)
+            else:
+                st.dataframe(numbers(result), hide_index=True, width="stretch")
             results.show_result(result)
 
 with tab_runs:
@@ -68,7 +74,5 @@ with tab_runs:
     else:
         pick = st.selectbox("Run", [r.name for r in runs], key="nav.runpick")
         results.show_result(next(r for r in runs if r.name == pick))
-
-from dashboard.land_navigation import land_navigation_section  # noqa: E402
 
 land_navigation_section()

@@ -7,7 +7,7 @@ from workbench.sim import roads
 
 
 def _time(leg: dict) -> float:
-    return roads._leg_time(leg)
+    return roads.leg_duration(leg)
 
 
 def test_thesis_drive_timeline():

@@ -12,7 +12,7 @@
   cruise at constant speed and constant heading rate.
 
 Public: ``THESIS_STOP_S``, ``THESIS_GPS_LOSS_S``, :func:`thesis_drive`, :func:`precalibration_legs`,
-:func:`constant_rate_drive`.
+:func:`constant_rate_drive`, :func:`leg_duration`.
 """
 
 from __future__ import annotations
@@ -54,7 +54,7 @@ def _random_legs(rng: np.random.Generator, duration_s: float) -> list[dict]:
 def _pad_to(legs: list[dict], until_s: float) -> list[dict]:
     """Stretch the last straight so the legs last until ``until_s`` s (approximately: legs are
     timed at their target speeds)."""
-    total = sum(_leg_time(leg) for leg in legs)
+    total = sum(leg_duration(leg) for leg in legs)
     for leg in reversed(legs):
         if leg["kind"] == "straight" and "length_m" in leg:
             leg["length_m"] = max(50.0, leg["length_m"] + (until_s - total) * leg["speed_mps"])
@@ -62,7 +62,8 @@ def _pad_to(legs: list[dict], until_s: float) -> list[dict]:
     return legs
 
 
-def _leg_time(leg: dict) -> float:
+def leg_duration(leg: dict) -> float:
+    """Duration (s) of one road leg (lab units) at its target speed and rate."""
     if "duration_s" in leg:
         return leg["duration_s"]
     if leg["kind"] == "straight":
@@ -87,7 +88,7 @@ def thesis_drive(seed: int = 1, rest_s: float = 120.0) -> tuple[list[dict], dict
              {"kind": "straight", "length_m": 200.0, "speed_mps": 10.0, "label": "heading initialisation"}]
             + first + [{"kind": "stop", "duration_s": THESIS_STOP_DURATION_S, "label": "wheel deflation"}] + second
             + [{"kind": "stop", "duration_s": 20.0, "label": "end"}])
-    t_restart = rest_s + 20.0 + sum(_leg_time(leg) for leg in first) + THESIS_STOP_DURATION_S - 5.0
+    t_restart = rest_s + 20.0 + sum(leg_duration(leg) for leg in first) + THESIS_STOP_DURATION_S - 5.0
     odometer = {"scale_steps": [[t_restart, 4.0]], "pulse_m": 0.01}
     gps = {"rate_hz": 1.0, "sigma_h_m": 2.0, "sigma_v_m": 4.0}
     return road, odometer, gps
