@@ -13,15 +13,19 @@
    ``workbench allan FILE --rate 100 --taus octave --out curves.csv`` (start-up, read, OADEV,
    intervals, fit, table, CSV) against a plain allantools script (read the same Parquet,
    ``oadev`` per axis with its default error bars, write a CSV), each in a fresh process,
-   interleaved ``--repeat`` times; medians of wall time and peak RSS.
+   interleaved ``--repeat`` times; medians of wall time, CPU time and peak RSS, the load average.
+   ``--all-n``: the same with every tau (``--stat oadev --taus all``: m = 1 .. N / 4 with
+   intervals; allantools given the same taus).
 
-Run: ``python benchmarks/allan_speed.py [--n 1e7] [--stream-n 1e9] [--memory-n 1e8] [--command-n 1e7] [--dir /tmp]``.
+Run: ``python benchmarks/allan_speed.py [--n 1e7] [--stream-n 1e9] [--memory-n 1e8] [--command-n 1e7]
+[--all-n 1e4] [--dir /tmp]``.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 import tempfile
@@ -121,11 +125,15 @@ def bench_stream(n: int, memory_n: int, directory: Path) -> None:
 
 _ALLANTOOLS_SCRIPT = """
 import sys
-import allantools, pandas as pd
+import allantools, numpy as np, pandas as pd
 df = pd.read_parquet(sys.argv[1])
+if sys.argv[3] == "all":  # every m up to Stable32's stop ratio 4, the grid of ``workbench allan --taus all``
+    taus = np.arange(1, len(df) // 4 + 1) / 100.0
+else:
+    taus = sys.argv[3]
 rows = []
 for c in df.columns:
-    t, d, e, n = allantools.oadev(df[c].to_numpy(), 100.0, "freq", "octave")
+    t, d, e, n = allantools.oadev(df[c].to_numpy(), 100.0, "freq", taus)
     rows += [(c, *v) for v in zip(t, d, e, n)]
 pd.DataFrame(rows, columns=["column", "tau", "dev", "err", "n"]).to_csv(sys.argv[2], index=False)
 """
@@ -146,7 +154,13 @@ def _timed(cmd: list[str]) -> tuple[float, float, float]:
     return float(wall), float(rss), float(cpu)
 
 
-def bench_command(n: int, repeat: int, directory: Path) -> None:
+def bench_command(n: int, taus: str, repeat: int, directory: Path) -> None:
+    """The whole ``workbench allan`` command against a plain allantools script on one Parquet file.
+
+    ``taus`` ``octave``: the default command (OADEV, intervals with noise identification, IEEE 952
+    fit, terms table, curves CSV); ``all``: ``--stat oadev --taus all`` (every m up to N / 4, with
+    intervals), allantools given the same taus.
+    """
     import pandas as pd
 
     with tempfile.TemporaryDirectory(dir=directory, prefix="allan-cmd-") as tmp:
@@ -154,21 +168,28 @@ def bench_command(n: int, repeat: int, directory: Path) -> None:
         rng = np.random.default_rng(3)
         pd.DataFrame(1e-3 * rng.standard_normal((n, 3)), columns=["gx", "gy", "gz"]).to_parquet(path)
         size_mb = path.stat().st_size / 1e6
-        wb = [sys.executable, "-m", "workbench", "allan", str(path), "--rate", "100", "--taus", "octave",
-              "--out", str(Path(tmp) / "wb.csv")]
-        at = [sys.executable, "-c", _ALLANTOOLS_SCRIPT, str(path), str(Path(tmp) / "at.csv")]
+        wb = [sys.executable, "-m", "workbench", "allan", str(path), "--rate", "100", "--taus", taus,
+              "--out", str(Path(tmp) / "wb.csv")] + (["--stat", "oadev"] if taus == "all" else [])
+        at = [sys.executable, "-c", _ALLANTOOLS_SCRIPT, str(path), str(Path(tmp) / "at.csv"), taus]
         _timed(wb)  # compile / warm the caches once
-        res = {"workbench": [], "allantools": []}
+        res: dict[str, list] = {"workbench": [], "allantools": []}
+        load = [os.getloadavg()[0]]
         for _ in range(repeat):
             res["workbench"].append(_timed(wb))
             res["allantools"].append(_timed(at))
-        print(f"whole command, {n:.3g} samples x 3 axes, octave ({size_mb:.0f} MB Parquet), medians of {repeat}:")
+            load.append(os.getloadavg()[0])
+        wb_dev = pd.read_csv(Path(tmp) / "wb.csv")["dev"].to_numpy()
+        at_dev = pd.read_csv(Path(tmp) / "at.csv")["dev"].to_numpy()
+        diff = float(np.max(np.abs(wb_dev / at_dev - 1))) if wb_dev.shape == at_dev.shape else float("nan")
+        print(f"whole command, {n:.3g} samples x 3 axes, {taus} taus ({len(wb_dev) // 3} per axis, "
+              f"{size_mb:.0f} MB Parquet), medians of {repeat} interleaved runs, load average "
+              f"{min(load):.1f}-{max(load):.1f} on {os.cpu_count()} CPUs:")
         med = {k: np.median(np.array(v), axis=0) for k, v in res.items()}
         for k, (wall, rss, cpu) in med.items():
             print(f"  {k:10s}: {wall:7.2f} s wall, {cpu:7.2f} s CPU, peak RSS {rss:6.0f} MB")
         print(f"  ratio allantools / workbench: {med['allantools'][0] / med['workbench'][0]:.2f}x wall, "
               f"{med['allantools'][2] / med['workbench'][2]:.2f}x CPU (the CPU ratio is the one to read on a "
-              "loaded machine)")
+              f"loaded machine); max relative difference of the deviations {diff:.1e}")
 
 
 def main() -> None:
@@ -177,13 +198,18 @@ def main() -> None:
     ap.add_argument("--stream-n", type=float, default=1e9, help="samples of the streamed Parquet file (0: skip)")
     ap.add_argument("--memory-n", type=float, default=None, help="samples of the in-memory comparison run")
     ap.add_argument("--dir", type=Path, default=Path(tempfile.gettempdir()), help="folder for the temporary files")
-    ap.add_argument("--command-n", type=float, default=0, help="samples per axis of the whole-command comparison")
+    ap.add_argument("--command-n", type=float, default=0, help="samples per axis of the whole-command comparison, "
+                                                               "octave taus (0: skip)")
+    ap.add_argument("--all-n", type=float, default=0, help="samples per axis of the whole-command comparison, "
+                                                           "every tau (0: skip)")
     ap.add_argument("--repeat", type=int, default=3, help="interleaved repetitions of the whole-command comparison")
     args = ap.parse_args()
     if args.n > 0:
         bench_in_memory(int(args.n))
     if args.command_n > 0:
-        bench_command(int(args.command_n), args.repeat, args.dir)
+        bench_command(int(args.command_n), "octave", args.repeat, args.dir)
+    if args.all_n > 0:
+        bench_command(int(args.all_n), "all", args.repeat, args.dir)
     if args.stream_n > 0:
         bench_stream(int(args.stream_n), int(args.memory_n or min(args.stream_n, 1e8)), args.dir)
 
