@@ -178,7 +178,8 @@ def bench_command(n: int, taus: str, repeat: int, directory: Path) -> None:
             res["workbench"].append(_timed(wb))
             res["allantools"].append(_timed(at))
             load.append(os.getloadavg()[0])
-        wb_dev = pd.read_csv(Path(tmp) / "wb.csv")["dev"].to_numpy()
+        wb_csv = pd.read_csv(Path(tmp) / "wb.csv")
+        wb_dev = wb_csv["dev" if "dev" in wb_csv else "adev"].to_numpy()
         at_dev = pd.read_csv(Path(tmp) / "at.csv")["dev"].to_numpy()
         diff = float(np.max(np.abs(wb_dev / at_dev - 1))) if wb_dev.shape == at_dev.shape else float("nan")
         print(f"whole command, {n:.3g} samples x 3 axes, {taus} taus ({len(wb_dev) // 3} per axis, "

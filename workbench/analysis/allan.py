@@ -88,7 +88,8 @@ def averaging_factors(n_phase: int, taus: str | np.ndarray, rate: float, kind: s
     else:
         tau_s = np.asarray(taus, float).ravel()
     m = np.round(tau_s * rate)
-    m = np.unique(m[(m > 0) & (m < n_phase)]).astype(np.int64)
+    m = np.sort(m[(m > 0) & (m < n_phase)]).astype(np.int64)
+    m = m[np.concatenate(([True], m[1:] != m[:-1]))[:len(m)]]  # unique (np.unique imports numpy.ma, ~40 ms)
     n = _n_terms(kind, n_phase, m)
     return m[n > 1]
 
