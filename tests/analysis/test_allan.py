@@ -132,16 +132,19 @@ def test_channel_major_record_gives_the_same_curve():
     np.testing.assert_allclose(deviation(yf, RATE).dev, deviation(y, RATE).dev, rtol=1e-12)
 
 
-def test_phase_in_place_of_a_rate_buffer_equals_the_copy():
+def test_phase_in_place_of_a_rate_buffer_equals_the_copy(monkeypatch):
     """``overwrite`` integrates into the buffer only for the exact ``buf[:, 1:].T`` view."""
+    from workbench.analysis import allan
     from workbench.analysis.allan import phase, rate_buffer
 
     y = np.random.default_rng(4).standard_normal((500, 3))
     expected = phase(y, 10.0)
-    buf = rate_buffer(500, 3)
-    buf[:, 1:] = y.T
-    x = phase(buf[:, 1:].T, 10.0, overwrite=True)
-    assert x is buf and np.array_equal(x, expected)
+    for populate in (0, 1 << 62):  # a mapped buffer, and np.empty
+        monkeypatch.setattr(allan, "POPULATE_BYTES", populate)
+        buf = rate_buffer(500, 3)
+        buf[:, 1:] = y.T
+        x = phase(buf[:, 1:].T, 10.0, overwrite=True)
+        assert np.shares_memory(x, buf) and x.shape == buf.shape and np.array_equal(x, expected)
     other = rate_buffer(500, 3)
     other[:, 1:] = y.T
     part = other[:, 1:-1].T  # not the whole buffer: a new array, the samples untouched
