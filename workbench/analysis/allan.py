@@ -214,9 +214,9 @@ def _phase_target(y: np.ndarray) -> np.ndarray | None:
 def phase(y: np.ndarray, rate: float, compiled: bool | None = None, overwrite: bool = False) -> np.ndarray:
     """Phase (C, N+1) from rate samples (N, C): x_0 = 0, x_k = dt cumsum(y - mean) (allantools).
 
-    ``compiled``: integrate with the numba kernel in one pass (default: for C-ordered records above
-    :data:`COMPILED_WORK` / 20 samples; numpy otherwise, channel by channel in place, no
-    temporaries: a channel-major (F-ordered) ``y``, as the CLI reads a file, is the fast case).
+    ``compiled``: integrate with the numba kernel in one pass (default: for records above
+    :data:`COMPILED_WORK` / 20 values, whose deviations load numba anyway; numpy otherwise,
+    channel by channel in place, no temporaries).
     ``overwrite``: when ``y`` is the view ``buf[:, 1:].T`` of a :func:`rate_buffer`, the phase
     replaces the samples in ``buf`` (returned; ``y`` is then overwritten) instead of a new array.
     """
@@ -226,12 +226,13 @@ def phase(y: np.ndarray, rate: float, compiled: bool | None = None, overwrite: b
     target = _phase_target(y) if overwrite else None
     x = target if target is not None else np.empty((y.shape[1], y.shape[0] + 1))
     if compiled is None:
-        compiled = y.size > COMPILED_WORK / 20 and y.flags.c_contiguous
-    if target is None and compiled:
+        compiled = y.size > COMPILED_WORK / 20
+    if compiled:  # in place too: each sample is read before its phase point is written
         from workbench.analysis import allan_kernels as kern
 
+        mean = kern.column_sums(y) / len(y)
+        kern.integrate(y, mean, 1.0 / float(rate), np.zeros(y.shape[1]), x[:, 1:])
         x[:, 0] = 0.0
-        kern.integrate(y, kern.column_sums(y) / len(y), 1.0 / float(rate), np.zeros(y.shape[1]), x[:, 1:])
         return x
     dt = 1.0 / float(rate)
     for c in range(y.shape[1]):
