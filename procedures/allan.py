@@ -47,10 +47,10 @@ OPTIONS = (
     Option("gap_policy", "analysis", "str", "error", "what a gap in the record does", choices=GAP_POLICIES),
     Option("method", "analysis", "str", "ieee952", "noise terms of the calibration set: IEEE 952 Allan fit or GMWM",
            choices=("ieee952", "gmwm")),
-    Option("gmwm_model", "analysis", "str", "wn+2gm+rw", "with method gmwm: the processes (wn qn rw dr gm, joined "
-           "by +; k*gm repeats)"),
-    Option("gmwm_bootstrap", "analysis", "int", 50, "with method gmwm: simulated records for the weighting matrix",
-           ge=0),
+    Option("gmwm_model", "analysis", "str", "wn+fl+rw", "with method gmwm: the processes (wn qn fl rw dr gm, joined "
+           "by +; k*gm repeats; fl = flicker bias instability)"),
+    Option("gmwm_bootstrap", "analysis", "int", 100, "with method gmwm: simulated records for the weighting matrix "
+           "and the intervals", ge=50),
     Option("span", "analysis", "str", "step", "what of the hold to analyse: the whole step, or its longest still "
            "stretch (stationarity detector; e.g. a hand-held record that starts moving)", choices=("step", "still")),
 )

@@ -48,10 +48,10 @@ def test_noise_block_has_the_calibration_set_layout(analysis):
     block = analysis.noise_block()
     assert block["arw"] == [f.terms["white"][0] for f in analysis.fits]
     assert block["rrw_ci95"] == [list(f.terms["rrw"][1:]) for f in analysis.fits]
-    assert block["bias_instability"] == [None, None, None]  # no Gauss-Markov term in wn+rw
+    assert block["bias_instability"] == [None, None, None]  # no flicker or Gauss-Markov term in wn+rw
     assert block["quantization"] == [None] * 3 and block["rate_ramp"] == [None] * 3
     with pytest.raises(ValueError, match="triad"):
-        analyze_gmwm(_record(1)[:, :1], RATE, ("gx",), "gyro", model="wn", bootstrap=0).noise_block()
+        analyze_gmwm(_record(1)[:, :1], RATE, ("gx",), "gyro", model="wn", bootstrap=50).noise_block()
 
 
 def test_summary_prints_lab_units(analysis):
@@ -66,9 +66,9 @@ def test_gaps_error_names_the_column_or_the_longest_run_is_fitted():
     y = _record(2)
     y[20_000:20_010, 1] = np.nan
     with pytest.raises(AnalysisError, match="column gy"):
-        analyze_gmwm(y, RATE, COLUMNS, "gyro", model="wn", bootstrap=0)
-    a = analyze_gmwm(y, RATE, COLUMNS, "gyro", model="wn", bootstrap=0, gap_policy="longest")
-    b = analyze_gmwm(y[:20_000], RATE, COLUMNS, "gyro", model="wn", bootstrap=0)
+        analyze_gmwm(y, RATE, COLUMNS, "gyro", model="wn", bootstrap=50)
+    a = analyze_gmwm(y, RATE, COLUMNS, "gyro", model="wn", bootstrap=50, gap_policy="longest")
+    b = analyze_gmwm(y[:20_000], RATE, COLUMNS, "gyro", model="wn", bootstrap=50)
     for fa, fb in zip(a.fits, b.fits):
         assert fa.terms["white"][0] == pytest.approx(fb.terms["white"][0], rel=1e-12)
     assert a.warnings

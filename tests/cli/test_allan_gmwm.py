@@ -16,7 +16,7 @@ def test_gmwm_command_writes_parameters(tmp_path, capsys):
     pd.DataFrame({"gx": y}).to_parquet(tmp_path / "r.parquet")
     out = tmp_path / "p.csv"
     assert main(["allan", str(tmp_path / "r.parquet"), "--rate", "100", "--method", "gmwm", "--processes", "wn+gm",
-                 "--bootstrap", "10", "--out", str(out)]) == 0
+                 "--bootstrap", "50", "--out", str(out)]) == 0
     rows = {r["parameter"]: r for r in csv.DictReader(out.open())}
     white = rows["white"]
     assert float(white["lo95"]) < float(white["value"]) < float(white["hi95"])

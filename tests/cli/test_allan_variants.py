@@ -25,5 +25,5 @@ def test_family_arguments_are_refused_before_reading(tmp_path, kw, match):
 
 
 def test_gmwm_bootstrap_is_refused_before_reading(tmp_path):
-    with pytest.raises(AnalysisError, match="--bootstrap -1: must be 0 or more"):
-        run_gmwm(tmp_path / "none.csv", None, None, "wn+rw", -1, "error", None)
+    with pytest.raises(AnalysisError, match="--bootstrap 5: must be 50 or more"):
+        run_gmwm(tmp_path / "none.csv", None, None, "wn+rw", 5, "error", None)

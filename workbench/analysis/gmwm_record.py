@@ -6,7 +6,8 @@ longest gap-free run is fitted) and returns a :class:`GmwmAnalysis`, whose
 :meth:`~GmwmAnalysis.noise_block` has the layout of the IEEE 952 fit's
 (:meth:`workbench.analysis.allan_fit.AllanAnalysis.noise_block`): per term a (3,) list (None
 where the model has no such term) and ``<name>_ci95``; bias instability comes from the
-Gauss-Markov sum.
+Gauss-Markov sum;
+a term not observed is None with the interval [0, upper limit].
 
 Public: :class:`GmwmAnalysis`, :func:`analyze_gmwm`.
 """
@@ -19,7 +20,7 @@ import numpy as np
 
 from workbench.analysis.allan import prepare_rate_data
 from workbench.analysis.allan_fit import CALSET_NAMES
-from workbench.analysis.gmwm import GmwmFit, fit_gmwm
+from workbench.analysis.gmwm import GmwmFit, fit_gmwm, term_interval_text
 from workbench.errors import AnalysisError
 
 
@@ -39,7 +40,7 @@ class GmwmAnalysis:
         block: dict = {}
         for term, name in CALSET_NAMES[self.quantity].items():
             vals = [f.terms.get(term) for f in self.fits]
-            block[name] = [v[0] if v is not None else None for v in vals]
+            block[name] = [v[0] if v is not None and f.resolved[term] else None for v, f in zip(vals, self.fits)]
             block[name + "_ci95"] = [[v[1], v[2]] if v is not None else None for v in vals]
         return block
 
@@ -49,18 +50,16 @@ class GmwmAnalysis:
 
     def summary(self) -> list[str]:
         """One line per channel: the IEEE 952 equivalents with 95 % intervals, in lab units."""
-        from workbench.analysis.allan_terms import term_text
 
         lines = []
         for f in self.fits:
-            parts = [f"{term_text(self.quantity, k, v)} [{term_text(self.quantity, k, lo).split(' ', 1)[1]} .. "
-                     f"{term_text(self.quantity, k, hi).split(' ', 1)[1]}]" for k, (v, lo, hi) in f.terms.items()]
+            parts = [term_interval_text(self.quantity, k, *v, f.resolved[k]) for k, v in f.terms.items()]
             lines.append(f"{f.column} (GMWM {self.model}): " + ", ".join(parts))
         return lines
 
 
 def analyze_gmwm(y: np.ndarray, rate: float, columns: tuple[str, ...] | list[str], quantity: str | None = None,
-                 model: str = "wn+2gm+rw", bootstrap: int = 50, gap_policy: str = "error", source: str = "data",
+                 model: str = "wn+fl+rw", bootstrap: int = 100, gap_policy: str = "error", source: str = "data",
                  seed: int = 0) -> GmwmAnalysis:
     """GMWM fit of ``model`` to every channel of rate samples ``y`` (N, C) SI at ``rate`` Hz.
 

@@ -63,10 +63,10 @@ def register(app: typer.Typer) -> None:
                                                                     "(0.683 = Stable32's 1 sigma)."),
         method: str = typer.Option("ieee952", "--method", help="Noise-model fit: ieee952 (Allan-variance terms) | "
                                                                "gmwm (wavelet-variance fit of --processes)."),
-        processes: str = typer.Option("wn+2gm+rw", "--processes", help="With --method gmwm: the model, terms wn qn "
-                                                                       "rw dr gm joined by + (k*gm repeats)."),
-        bootstrap: int = typer.Option(50, "--bootstrap", help="With --method gmwm: simulated records for the "
-                                                              "optimal weighting matrix (0 = diagonal weights)."),
+        processes: str = typer.Option("wn+fl+rw", "--processes", help="With --method gmwm: the model, terms wn qn "
+                                                                      "fl rw dr gm joined by + (k*gm repeats)."),
+        bootstrap: int = typer.Option(100, "--bootstrap", help="With --method gmwm: simulated records for the "
+                                                               "weighting matrix and the intervals (>= 50)."),
     ) -> None:
         """Overlapping Allan deviation with 95 % intervals and the IEEE 952 noise terms (or --stat NAME)."""
         cols = [c.strip() for c in columns.split(",")] if columns else None

@@ -81,12 +81,11 @@ def run_gmwm(source: Path, cols: list[str] | None, rate: float | None, processes
           gap_policy: str, out_csv: Path | None) -> None:
     """``--method gmwm``: the GMWM fit of every column, its parameters and IEEE 952 equivalents."""
     from workbench.analysis.allan import prepare_rate_data
-    from workbench.analysis.allan_terms import term_text
-    from workbench.analysis.gmwm import fit_gmwm, parse_model
+    from workbench.analysis.gmwm import MIN_BOOTSTRAP, fit_gmwm, parse_model, term_interval_text
 
     parse_model(processes)  # a bad model text fails before the record is read
-    if bootstrap < 0:
-        raise AnalysisError(f"--bootstrap {bootstrap}: must be 0 or more")
+    if bootstrap < MIN_BOOTSTRAP:
+        raise AnalysisError(f"--bootstrap {bootstrap}: must be {MIN_BOOTSTRAP} or more")
     y, fs, cols, label = load_record(source, cols, rate)
     quantity = quantity_of(cols)
     segments, warnings = prepare_rate_data(y, tuple(cols), label, gap_policy, quantity)
@@ -104,8 +103,7 @@ def run_gmwm(source: Path, cols: list[str] | None, rate: float | None, processes
     rows = []
     for f in fits:
         for name, (v, lo, hi) in f.terms.items():
-            t.add_row(f.column, name, f"{term_text(quantity, name, v)} [{term_text(quantity, name, lo).split(' ', 1)[1]}"
-                                      f" .. {term_text(quantity, name, hi).split(' ', 1)[1]}]")
+            t.add_row(f.column, name, term_interval_text(quantity, name, v, lo, hi, f.resolved[name]))
         for name, v, (lo, hi) in zip(f.names(), f.theta, f.ci95):
             rows.append((f.column, name, float(v), float(lo), float(hi)))
             if name.startswith("gm"):
