@@ -29,7 +29,6 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-import cvxpy as cp
 import numpy as np
 
 from workbench.analysis.mag_fit import MagFit, build_fit, gain_to_model, nan33, solve
@@ -83,6 +82,8 @@ def algebraic_pd(mag: np.ndarray, robust: bool | str = False) -> tuple[np.ndarra
     subject to ``Q >= 1e-3 I`` (positive definite: always an ellipsoid) and ``trace Q = 3``
     (removes the trivial solution); ``robust`` uses the Huber loss.
     """
+    import cvxpy as cp  # here, not at import: 0.3-0.5 s (with scipy.stats) that only this fit needs
+
     c0, s0, x = _centre_scale(mag)
     design = _quadric_design(x)
     q = cp.Variable((3, 3), symmetric=True)

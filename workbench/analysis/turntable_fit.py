@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
-from scipy.stats import chi2 as chi2_dist
+from scipy.special import chdtri  # chi-squared upper quantile: scipy.stats.chi2.isf without importing scipy.stats
 
 from workbench.analysis.position_check import (
     StepStats, deleted_residual_statistics, motion_in_static, step_name, step_stats,
@@ -207,7 +207,7 @@ def _misfits(fit: _AxisFit, var: np.ndarray, stats: list[StepStats], residual_of
     """
     n = len(stats)
     t = deleted_residual_statistics(fit.jac, fit.y_lin, var)
-    limit = chi2_dist.isf(MISFIT_P / n, 3)
+    limit = chdtri(3, MISFIT_P / n)
     flagged = [i for i in np.argsort(-np.nan_to_num(t, nan=-1.0)) if np.isfinite(t[i]) and t[i] > limit]
     if not flagged:
         return [], ""

@@ -12,7 +12,7 @@ from dataclasses import replace
 
 import numpy as np
 from scipy.optimize import brentq
-from scipy.stats import chi2 as chi2_dist
+from scipy.special import chdtri  # chi-squared upper quantile: scipy.stats.chi2.isf without importing scipy.stats
 
 from workbench import units
 from workbench.allan_model import FLICKER_AVAR
@@ -127,7 +127,7 @@ def _position_sigma(build, position_sigma: float | str, n: int, context: str) ->
             raise AnalysisError(f"{context}: position_sigma={position_sigma!r} must be >= 0 rad or 'auto'")
         return sig
     fit0 = build(np.ones(n, bool), 0.0)
-    if fit0.dof == 0 or fit0.chi2 <= chi2_dist.isf(1e-3, fit0.dof):
+    if fit0.dof == 0 or fit0.chi2 <= chdtri(fit0.dof, 1e-3):
         return 0.0
 
     def excess(log_sig: float) -> float:
