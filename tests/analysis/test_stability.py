@@ -215,12 +215,18 @@ def test_total_family_intervals_against_stable32(name, phase_dat):
     # so wider: totdev below m = 4 and htotdev at m = 1 (capped at the OADEV / OHDEV EDF: within 1 %),
     # mtotdev / ttotdev from m = 10 (SP 1065 table 8, which the Monte Carlo EDF of the estimator
     # supports, where Stable32's bounds imply ~1.2x (white FM) and ~1.45x (flicker PM) table 8:
-    # 0.6-6.4 % wider, benchmarks/allan_ci_edf.py)
+    # 0.6-6.4 % wider, benchmarks/allan_ci_edf.py). More degrees of freedom than Stable32's: htotdev
+    # white PM from m = 2 (0.6 N, the floor of the estimator's Monte Carlo EDF, where Stable32's
+    # simple formula gives ~0.5 N: within 0.3 % and narrower)
     t, _, lo_ref, hi_ref, lo, hi = _stable32_bounds(name, phase_dat)
-    m, stat = t[:, 0], name.split("_")[0]
+    m, stat, alpha = t[:, 0], name.split("_")[0], t[:, 3]
     fewer = {"totdev": m < TOT_OADEV_BELOW, "htotdev": m == 1}.get(stat, m >= MTOT_MDEV_BELOW)
-    same = ~fewer
-    assert same.sum() >= 3
+    more = (stat == "htotdev") & (alpha == 2) & (m >= 2)
+    same = ~fewer & ~more
+    assert (same | more).sum() >= 3  # rows compared at the tight tolerances
+    assert np.all(lo[more] >= lo_ref[more]) and np.all(hi[more] <= hi_ref[more])
+    np.testing.assert_allclose(lo[more], lo_ref[more], rtol=0.003)
+    np.testing.assert_allclose(hi[more], hi_ref[more], rtol=0.003)
     np.testing.assert_allclose(lo[same], lo_ref[same], rtol=SAME_EDF)
     np.testing.assert_allclose(hi[same], hi_ref[same], rtol=SAME_EDF)
     assert np.all(lo[fewer] <= lo_ref[fewer]) and np.all(hi[fewer] >= hi_ref[fewer])
@@ -245,17 +251,3 @@ def test_every_statistic_runs_with_intervals_on_a_short_record():
         assert len(s.tau) >= 1 and np.all(np.isfinite(s.dev)), stat
         if stat not in ("mtie", "tierms"):
             assert np.all((ci.lo <= s.dev) & (s.dev <= ci.hi)), stat
-
-
-@pytest.mark.parametrize("name", ["mtotdev_octave", "mtotdev_octave_alpha0", "mtotdev_decade", "ttotdev_octave",
-                                  "ttotdev_decade", "htotdev_octave", "htotdev_octave_nobias"])
-def test_total_family_intervals_against_stable32(name, phase_dat):
-    # with Stable32's noise type: mtotdev / ttotdev below m = 10 take the MDEV EDF and agree
-    # within 1 % (measured 0.04 %); from m = 10 Stable32's bounds imply ~1.2x the SP 1065 table 8
-    # EDF used here, and htotdev's imply more than the OHDEV EDF used here: there ours must be
-    # wider (never narrower), and the white-PM htotdev rows agree within 1 %
-    t, _, lo_ref, hi_ref, lo, hi = _stable32_bounds(name, phase_dat)
-    close = (t[:, 0] < 10) if not name.startswith("htotdev") else (t[:, 3] == 2)
-    np.testing.assert_allclose(lo[close], lo_ref[close], rtol=0.01)
-    np.testing.assert_allclose(hi[close], hi_ref[close], rtol=0.01)
-    assert np.all(lo[~close] <= lo_ref[~close] * 1.0001) and np.all(hi[~close] >= hi_ref[~close] * 0.9999)

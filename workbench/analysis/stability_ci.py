@@ -24,9 +24,14 @@ phase points (T = N tau0, as Stable32):
   b = 1.33, c = 1.89 for white FM, 1.73 / 2.99 for flicker PM, against table 8's 1.10 / 1.2 and
   1.20 / 1.40), which the Monte Carlo EDF of the same estimator does not support
   (benchmarks/allan_ci_edf.py): ours are the wider.
-* htotdev: at m = 1 (where it is the OHDEV) the OHDEV's; below m = 16, and for PM noise at every
+* htotdev: at m = 1 (where it is the OHDEV) the OHDEV's; below m = 16, and for flicker PM at every
   m, the simple formulas of SP 1065 (Howe, Allan & Barnes), from m = 16 for FM noise Howe et
-  al.'s (PTTI 2000) edf = (N / m) / (b0 + b1 m / N); noise steeper than random-walk FM: the OHDEV's.
+  al.'s (PTTI 2000) edf = (N / m) / (b0 + b1 m / N), all as Stable32; noise steeper than
+  random-walk FM: the OHDEV's. White PM from m = 2: 0.6 N. Stable32 takes the simple white-PM
+  formula, ~0.5 N falling to 0.33 N at m = N / 4, but the Monte Carlo EDF of the estimator is
+  0.58-0.81 N at every m from 2 to N / 4 (N = 256, 1001, 4096): with it the intervals covered
+  98.2 % instead of 95 %; 0.6 N is that EDF's floor (narrower than Stable32's by <= 0.3 % up to
+  m = 16, 0.7 % at m = N / 4).
 * Theo1 / TheoH beyond the oadev part: Howe & Tasset's Theo1 EDF (SP 1065), r = 0.75 m.
 
 MTIE and TIE rms get no interval (NaN). The interval is the chi-squared one at two-sided ``level``.
@@ -41,7 +46,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from workbench.analysis.allan_ci import MAX_POINTS_ID, chi2_ppf, edf_greenhall, noise_id_spread
-from workbench.analysis.stability import Stability
+from workbench.analysis.stability import Stability, stability
 
 AMBIGUOUS_SE = 1.0  # standard errors of the lag-1 alpha within which a second noise type is considered
 FLICKER_AVERAGED = 1.5  # alpha on the block-averaged phase below which "white PM" is flicker PM
@@ -57,6 +62,7 @@ TOT_OADEV_BELOW = 4  # totdev below this m: at most the OADEV's EDF
 TOT_WPM_ENDS = 1.5  # totdev, white PM: 1 / edf gains (m / N)^2 / TOT_WPM_ENDS (module docstring)
 MTOT_MDEV_BELOW = 10  # mtotdev / ttotdev below this m take the Greenhall MDEV EDF
 HTOT_FROM = 16  # htotdev from this m (FM noise) takes Howe's HTOT EDF
+HTOT_WPM = 0.6  # htotdev, white PM, m >= 2: edf = HTOT_WPM N (module docstring)
 
 
 @dataclass(frozen=True)
@@ -134,6 +140,8 @@ def edf_of(stat: str, alpha: int, m: int, n_phase: int, n_used: int | None = Non
     if stat == "htotdev":
         if m == 1 or alpha < -2:  # htotdev is the ohdev at m = 1; no total formula below RW FM
             return edf_greenhall(max(alpha, -4), 3, int(m), int(n_phase), True, False)
+        if alpha == 2:  # white PM: the Monte Carlo floor (see the module docstring)
+            return HTOT_WPM * n_phase
         if m < HTOT_FROM or alpha > 0:
             return edf_simple(alpha, n_phase, m)
         b0, b1 = _HTOT[alpha]
@@ -190,7 +198,7 @@ def intervals(curve: Stability, x: np.ndarray, level: float = 0.95, alpha: np.nd
         m_id = np.maximum(np.round(0.75 * curve.m), 1) if curve.stat == "theo1" else curve.m
         alpha, other = _identify(x, m_id, dmax)
         alpha = _conservative(curve, alpha, other)
-        alpha = _fill(curve, alpha)
+        alpha = _fill(curve, alpha, x)
     alpha = np.asarray(alpha, float)
     theo_part = curve.stat == "theoh"
     edf = np.empty(k_n)
@@ -218,9 +226,10 @@ def _conservative(curve: Stability, alpha: np.ndarray, other: np.ndarray) -> np.
     return out
 
 
-def _fill(curve: Stability, alpha: np.ndarray) -> np.ndarray:
+def _fill(curve: Stability, alpha: np.ndarray, x: np.ndarray) -> np.ndarray:
     """Exponents of the taus too long to identify: of the one carried from the last identified tau
-    and the one from the local slope of the curve, the one giving fewer degrees of freedom."""
+    and the one from the local slope of the curve, the one giving fewer degrees of freedom; white
+    vs flicker PM (the slope cannot tell them apart) by Stable32's R(n) ratio instead."""
     out = alpha.copy()
     if len(curve.tau) > 1:
         mu = np.gradient(np.log(np.maximum(curve.dev, 1e-300)), np.log(curve.tau))
@@ -235,6 +244,22 @@ def _fill(curve: Stability, alpha: np.ndarray) -> np.ndarray:
             last = alpha[k]
             continue
         cands = {float(last), float(slope[k])}
-        out[k] = min(cands, key=lambda a: edf_of(curve.stat if curve.stat != "theoh" else "theo1", int(a),
-                                                  int(curve.m[k]), curve.n_phase))
+        pm = _pm_by_ratio(x, max(int(round(curve.tau[k] * curve.rate)), 1)) if cands == {1.0, 2.0} else None
+        out[k] = pm if pm is not None else min(
+            cands, key=lambda a: edf_of(curve.stat if curve.stat != "theoh" else "theo1", int(a), int(curve.m[k]),
+                                        curve.n_phase))
     return out
+
+
+def _pm_by_ratio(x: np.ndarray, m: int) -> float | None:
+    """White (2) or flicker (1) PM at factor ``m`` of phase ``x`` from R(n) = MVAR / AVAR (Riley,
+    SP 1065 5.6): 1 / m for white PM, 3.37 / (1.04 + 3 ln(pi m)) for flicker PM (bandwidth the
+    Nyquist frequency); the boundary is their geometric mean, at most 3 / m (white PM's ratio
+    scatters by ~1 / m at long taus, flicker PM's far more: a tight white-PM side keeps flicker PM
+    from being read as white, the optimistic error). None if MVAR needs more than the record
+    (3 m + 1 points)."""
+    if m < 2 or 3 * m + 1 > len(x):
+        return None
+    ratio = (stability(x, 1.0, "mdev", "phase", [m]).dev[0] / stability(x, 1.0, "oadev", "phase", [m]).dev[0]) ** 2
+    flicker = 3.37 / (1.04 + 3.0 * np.log(np.pi * m))
+    return 2.0 if ratio < min(np.sqrt(flicker / m), 3.0 / m) else 1.0
