@@ -78,6 +78,8 @@ def test_procedure_on_a_free_session_never_uses_a_table():
     assert "tracked through the motion" in result.result["reason"] and "hand-held quality" in text
     assert any("uncalibrated accelerometer" in w for w in result.warnings)
     assert result.result["free_quality"]["plain_ellipsoid"]["field_norm_rms_pct_held_out"] > 0
+    motion = result.result["motion"]  # the in-memory session has no time offset: not significant, not corrected
+    assert motion["corrected"] is False and abs(motion["mag_delay_ms"]) < 4 * motion["mag_delay_sigma_ms"]
     assert set(proc.figures(result)) == {"mag_cloud", "mag_free_quality"}
 
 

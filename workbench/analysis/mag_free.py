@@ -334,4 +334,5 @@ def calibrate_free(session: Session, method: str = "auto", robust: bool | str = 
             shown += f"; the hard iron moves by ({', '.join(f'{v:+.2f}' for v in drift)}) µT from the first half to the second"
         warnings = (*warnings, f"sigmas scaled where the fits of the two halves in time differ by more than their "
                                f"sigmas (model misfit or correlated residuals): {shown}")
-    return replace(cal, fit=fit, warnings=warnings, free_quality=quality)
+    return replace(cal, fit=fit, warnings=warnings, free_quality=quality,
+                   motion=None if data.timing is None else data.timing.to_dict())

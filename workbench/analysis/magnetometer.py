@@ -90,6 +90,7 @@ class MagCalibration:
     warnings: tuple[str, ...]
     reference: ReferenceField | None = None
     free_quality: FreeQuality | None = None  # the truth-free figures of a hand-held fit
+    motion: dict | None = None  # hand-held: mag time offset, gyro bias and gain (mag_motion.Timing.to_dict)
 
     def to_dict(self) -> dict:
         """JSON-ready result (SI, angles in rad unless the key says ``_deg``)."""
@@ -101,7 +102,7 @@ class MagCalibration:
                 "baseline_heading": None if self.baseline_heading is None else self.baseline_heading.to_dict(),
                 "reference_field": None if self.reference is None else self.reference.to_dict(),
                 "free_quality": None if self.free_quality is None else self.free_quality.to_dict(),
-                "n_points": len(self.points), "warnings": list(self.warnings)}
+                "motion": self.motion, "n_points": len(self.points), "warnings": list(self.warnings)}
 
     def summary(self) -> list[str]:
         """Lines for people, in lab units: method and reason, hard iron µT, soft iron %, field norm µT,

@@ -35,7 +35,7 @@ def plot_free_quality(q: FreeQuality) -> plt.Figure:
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8, loc="upper right")
     ax_n.set_ylabel("field norm − fitted norm (%)")
-    ax_a.set_ylabel("angle field to gravity (°)\n(points whose |f| is gravity)")
+    ax_a.set_ylabel("angle field to gravity (°)\n(points whose gravity is known)")
     ax_a.set_xlabel("time (s); dashed: held-out split (fit before, judge after)")
     ax_n.set_title(f"Hand-held magnetometer fit, {q.n_points} points (no truth needed)")
     return fig
