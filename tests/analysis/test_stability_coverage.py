@@ -18,7 +18,7 @@ from workbench.sim.powerlaw import NOISE_NAMES
 TOL = 3 * np.sqrt(0.0475 / 100)
 
 
-@pytest.mark.parametrize("stat", ["oadev", "mdev", "ohdev", "adev"])
+@pytest.mark.parametrize("stat", ["oadev", "mdev", "ohdev", "adev", "totdev", "mtotdev", "htotdev", "theo1"])
 @pytest.mark.parametrize("alpha", sorted(NOISE_NAMES))
 def test_coverage_per_noise_type(stat, alpha):
     cov, k = coverage(stat, alpha, 512, 100, seed=1000 + 10 * alpha)
