@@ -116,7 +116,7 @@ def test_simple_edf_agrees_with_allantools():
                                                                       rel=1e-12), (alpha, n_phase, m)
 
 
-@pytest.mark.parametrize("stat", ["totdev", "htotdev", "theo1"])
+@pytest.mark.parametrize("stat", ["totdev", "mtotdev", "htotdev", "theo1"])
 @pytest.mark.parametrize("alpha", [2, 1, 0, -1, -2])
 def test_total_and_theo1_edf_are_not_optimistic_against_monte_carlo(stat, alpha):
     """The EDF in use against the Monte Carlo EDF 2 E[s^2]^2 / var(s^2) of the estimator on R = 300
