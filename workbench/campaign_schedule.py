@@ -6,8 +6,12 @@ has its own rig and seed); an analysis needs its own session and the noise terms
 procedures before it that give them (the Allan record's B and K for the static and thermal
 fits: :func:`workbench.jobs.noise_options_known`); figures need their result. With two or more
 workers (:mod:`workbench.workers`) the recordings start at once, longest planned first; an
-analysis runs, as soon as its noise terms are known, in the worker that holds its session;
-figures are saved last, a procedure with several split over the workers. Every step depends
+analysis runs, as soon as its noise terms are known, in the worker that holds its session
+(which draws its figures there and then); figures are saved last, one job per figure, each
+worker first saving the figures it holds. A worker with none left takes over figures of a
+procedure with at least :data:`SPLIT_FIGURES` still to save, draws that procedure's figures
+once and saves them one by one alongside the holder, so both workers finish within about a
+figure of each other. Every step depends
 only on its arguments, so the files are the same as in order in one process. On a real rig
 (one turntable) everything runs in order in this process.
 """
@@ -21,7 +25,7 @@ from dataclasses import dataclass, field
 
 from workbench.workers import Workers, usable_workers, usage_since
 
-SPLIT_FIGURES = 3  # a procedure with this many figures or more has them saved by two workers
+SPLIT_FIGURES = 3  # a worker draws another's procedure again only to share this many figures or more
 
 
 @dataclass(frozen=True)
@@ -98,15 +102,10 @@ def _handler(plan) -> Callable:
             return result, SessionInfo.of(session), list(figures)
         if kind == "figures":
             k, result, names = args
-            held = memory.get(("figures", k))
-            figures = held or plan.draw(k, result)
-            chunk = {name: figures.pop(name) for name in names}
-            if not held and figures:  # drawn here for this chunk only: the others are another worker's
-                import matplotlib.pyplot as plt
-
-                for fig in figures.values():
-                    plt.close(fig)
-            plan.save(k, chunk, workers=1)
+            figures = memory.get(("figures", k))
+            if figures is None:  # another worker's procedure: drawn here once, for this and the next jobs
+                figures = memory[("figures", k)] = plan.draw(k, result)
+            plan.save(k, {name: figures.pop(name) for name in names}, workers=1)
             return None
         raise ValueError(f"unknown job {kind!r}")
     return handle
@@ -117,8 +116,24 @@ def _in_parallel(plan, progress_for, n_workers: int) -> Done:
     done = Done([None] * n, {}, [None] * n, {k: {} for k in range(n)})
     to_record = deque(sorted(range(n), key=lambda k: -plan.planned_s(k)))  # the longest first
     held: dict[int, int] = {}  # procedure -> worker holding its recorded session
-    chunks: list[tuple[int, list[str], int]] = []  # figures to save: (procedure, names, worker holding them)
+    to_save: dict[int, list[str]] = {}  # procedure -> its figures not saved yet, in order
+    drawn: dict[int, set[int]] = {w: set() for w in range(n_workers)}  # worker -> procedures whose figures it holds
     trackers: dict[int, Callable | None] = {}
+
+    def figure_job(w: int) -> tuple | None:
+        mine = [k for k in to_save if k in drawn[w]]
+        if mine:
+            k = mine[0]
+        else:  # the others' figures, where enough are left to be worth drawing again
+            shared = [k for k in to_save if len(to_save[k]) >= SPLIT_FIGURES]
+            if not shared:
+                return None
+            k = max(shared, key=lambda k: len(to_save[k]))
+            drawn[w].add(k)
+        name = to_save[k].pop()
+        if not to_save[k]:
+            del to_save[k]
+        return ("figures", k, name), "figures", k, done.results[k], [name]
 
     def next_job(w: int) -> tuple | None:
         for k in sorted(k for k, holder in held.items() if holder == w):
@@ -130,11 +145,7 @@ def _in_parallel(plan, progress_for, n_workers: int) -> Done:
             k = to_record.popleft()
             trackers[k] = progress_for(plan.name(k)) if progress_for else None
             return ("record", k), "record", k
-        if chunks:  # figures this worker already holds first
-            i = next((i for i, c in enumerate(chunks) if c[2] == w), 0)
-            k, names, _ = chunks.pop(i)
-            return ("figures", k, tuple(names)), "figures", k, done.results[k], names
-        return None
+        return figure_job(w)
 
     plan.preload()  # imported once here, not once per worker
     with Workers(n_workers, _handler(plan)) as pool:
@@ -157,11 +168,10 @@ def _in_parallel(plan, progress_for, n_workers: int) -> Done:
                 held[k] = w
             elif phase == "analyse":
                 done.results[k], done.sessions[k], names = value
-                if len(names) >= SPLIT_FIGURES:
-                    chunks.extend([(k, names[0::2], w), (k, names[1::2], -1)])
-                elif names:
-                    chunks.append((k, names, w))
-            if phase == "figures" and "figures" in done.usage[k]:  # the second half: add it up
+                if names:
+                    to_save[k] = list(reversed(names))  # popped from the end: saved in the order drawn
+                    drawn[w].add(k)
+            if phase == "figures" and "figures" in done.usage[k]:  # another of its figures: add it up
                 first = done.usage[k]["figures"]
                 usage = {"wall_s": first["wall_s"] + usage["wall_s"], "cpu_s": first["cpu_s"] + usage["cpu_s"],
                          "peak_rss": max(first["peak_rss"], usage["peak_rss"])}
