@@ -109,29 +109,44 @@ def mdev_sums(x, lags, j0, j1, v0, run, out):  # pragma: no cover - compiled
 
     For lag m the inner sum at j is v_j = v0 + run_j, run_j = run_{j-1} + (x[j+3m-1] - 3x[j+2m-1]
     + 3x[j+m-1] - x[j-1]); j runs over [j0[k], j1[k]) (j = 0 is the first term, v0 its value).
-    ``v0``, ``run`` (K, C) hold the state; ``out`` (K, C) accumulates v_j^2 in blocks.
+    ``v0``, ``run`` (K, C) hold the state; ``out`` (K, C) accumulates v_j^2 in blocks of
+    ``BLOCK`` terms from j0. Channels advance three at a time (:func:`_mdev_three`): their
+    recursions are independent chains the processor overlaps, where one alone waits on each addition.
     """
     n_ch = x.shape[0]
     for k in range(lags.shape[0]):
-        m = lags[k]
-        for c in range(n_ch):
-            xc = x[c]
-            r = run[k, c]
-            base = v0[k, c]
-            acc = 0.0
-            block = 0.0
-            cnt = 0
-            for j in range(j0[k], j1[k]):
-                if j == 0:
-                    v = base
-                else:
-                    r += xc[j + 3 * m - 1] - 3.0 * xc[j + 2 * m - 1] + 3.0 * xc[j + m - 1] - xc[j - 1]
-                    v = base + r
-                block += v * v
-                cnt += 1
-                if cnt == BLOCK:
-                    acc += block
-                    block = 0.0
-                    cnt = 0
-            run[k, c] = r
-            out[k, c] += acc + block
+        for c in range(0, n_ch, 3):
+            a, b, d = c, min(c + 1, n_ch - 1), min(c + 2, n_ch - 1)  # a short group repeats its last channel
+            ra, rb, rd, sa, sb, sd = _mdev_three(x[a], x[b], x[d], lags[k], j0[k], j1[k], run[k, a], run[k, b],
+                                                 run[k, d], v0[k, a], v0[k, b], v0[k, d])
+            run[k, a], run[k, b], run[k, d] = ra, rb, rd
+            out[k, a] += sa
+            if b != a:
+                out[k, b] += sb
+            if d != b:
+                out[k, d] += sd
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy", boundscheck=False)
+def _mdev_three(xa, xb, xd, m, j_start, j_stop, ra, rb, rd, va, vb, vd):  # pragma: no cover - compiled
+    """:func:`mdev_sums` of one lag for three channels: (running sums, sums of v^2 per channel)."""
+    ta = tb = td = 0.0
+    for b0 in range(j_start, j_stop, BLOCK):
+        b1 = min(b0 + BLOCK, j_stop)
+        qa = qb = qd = 0.0
+        start = b0
+        if b0 == 0:
+            qa, qb, qd = va * va, vb * vb, vd * vd
+            start = 1
+        for j in range(start, b1):
+            ra += xa[j + 3 * m - 1] - 3.0 * xa[j + 2 * m - 1] + 3.0 * xa[j + m - 1] - xa[j - 1]
+            rb += xb[j + 3 * m - 1] - 3.0 * xb[j + 2 * m - 1] + 3.0 * xb[j + m - 1] - xb[j - 1]
+            rd += xd[j + 3 * m - 1] - 3.0 * xd[j + 2 * m - 1] + 3.0 * xd[j + m - 1] - xd[j - 1]
+            wa, wb, wd = va + ra, vb + rb, vd + rd
+            qa += wa * wa
+            qb += wb * wb
+            qd += wd * wd
+        ta += qa
+        tb += qb
+        td += qd
+    return ra, rb, rd, ta, tb, td
