@@ -233,11 +233,7 @@ def _gap_free(stat: str, x: np.ndarray, m: int, tau0: float) -> tuple[float, int
     n_x = len(x)
     tau = m * tau0
     if stat == "totdev":
-        ext = np.concatenate((2.0 * x[0] - x[1:-1][::-1], x, 2.0 * x[-1] - x[1:-1][::-1]))
-        mid = n_x - 2
-        i = np.arange(mid) + mid + 1  # centres x_2 .. x_{N-1} of the original record
-        d = ext[i - m] - 2.0 * ext[i] + ext[i + m]
-        return float(np.sqrt(np.sum(d * d) / (2.0 * tau ** 2 * (n_x - 2)))), mid
+        return float(np.sqrt(_totdev_sum(x, m) / (2.0 * tau ** 2 * (n_x - 2)))), n_x - 2
     if stat in ("mtotdev", "ttotdev"):
         if n_x - 3 * m + 1 < 1:
             return float("nan"), 0
@@ -311,6 +307,33 @@ def _mtot_sum(x, m, hadamard):  # pragma: no cover - compiled
             d = (s1 - 2.0 * s2 + s3) / m
             acc += d * d
         total += acc / (6.0 * m) / (6.0 if hadamard else 1.0)  # Hadamard: 1/6 <(second diff)^2>
+    return total
+
+
+@numba.njit(cache=True, nogil=True)
+def _reflected(x, k):  # pragma: no cover - compiled
+    """Point k of the phase extended by odd reflection at both ends (SP 1065 eq. 25): x[k] inside,
+    2 x[0] - x[-k] before the start, 2 x[L-1] - x[2L-2-k] after the end."""
+    n = x.shape[0]
+    if k < 0:
+        return 2.0 * x[0] - x[-k]
+    if k >= n:
+        return 2.0 * x[n - 1] - x[2 * n - 2 - k]
+    return x[k]
+
+
+@numba.njit(cache=True, nogil=True)
+def _totdev_sum(x, m):  # pragma: no cover - compiled
+    """Total-deviation sum over the centres x_1 .. x_{L-2} of (x*[t-m] - 2 x[t] + x*[t+m])^2, x* the
+    reflected extension (:func:`_reflected`), in one pass, partial sums of 4096 terms."""
+    n = x.shape[0]
+    total = 0.0
+    for b0 in range(1, n - 1, 4096):
+        part = 0.0
+        for t in range(b0, min(b0 + 4096, n - 1)):
+            d = _reflected(x, t - m) - 2.0 * x[t] + _reflected(x, t + m)
+            part += d * d
+        total += part
     return total
 
 
