@@ -114,7 +114,7 @@ def show_stored_result(procedure: str, folder: Path, row: dict) -> None:
         st.warning(str(w))
     with st.expander("result.json"):
         st.json(doc)
-    pngs = stored_figures(folder)
+    pngs = stored_figures(folder, doc)
     for png in pngs:
         st.image(str(png), caption=png.stem.replace("_", " "))
     if not pngs:

@@ -158,15 +158,17 @@ def run_analysis(proc, session: Session, options: Mapping | None = None, out_dir
     writes no figures (batch work: they can be drawn later from ``result.json``'s result).
     """
     result = analysed(proc, session, options, force)
+    doc = json.loads(result_json(result))
     if out_dir is not None:
         figs = proc.figures(result) if figures and hasattr(proc, "figures") else None
         write_outputs(result, Path(out_dir), figs)
+        if figs:  # the store names where they are, for the dashboard and the certificate
+            doc["figures_dir"] = str((Path(out_dir) / "figures").resolve())
     if store is not None:
         def write() -> None:  # one transaction: the session record, the result and its set, or nothing
             store.add_session(session.id, session.unit.serial, session.unit.model, result.procedure,
                               str(session.path or ""), session.samples_sha256() or "", len(session.steps), True)
-            store.add_result(result.procedure, session.id, session.unit.serial, json.loads(result_json(result)),
-                             result.calibration)
+            store.add_result(result.procedure, session.id, session.unit.serial, doc, result.calibration)
         store.write_together(write)
     return result
 

@@ -1,7 +1,8 @@
 """What was stored with an analysis result: the options that produced it and the figures drawn from it.
 
 A run or campaign writes ``<out>/<procedure>/session/`` (the recording), ``result.json`` and
-``figures/*.png`` beside it; the options it analysed with are in ``result.json`` (``options``),
+``figures/*.png`` beside it (``workbench analyze --figures DIR`` writes them into DIR and the stored
+result names that folder, ``figures_dir``); the options it analysed with are in ``result.json`` (``options``),
 else in the session manifest (``analysis_options``, written by ``workbench run``), else in the
 campaign's ``campaign.json`` (``analysis_options[procedure]``). Readers that must show the stored
 result, not a re-analysis (the certificate, the dashboard's analysis pages), use these.
@@ -37,8 +38,13 @@ def stored_options(session_dir: str | Path | None, procedure: str, result: dict 
     return {} if manifest else None
 
 
-def stored_figures(session_dir: str | Path | None) -> list[Path]:
-    """The PNG figures written beside a session when its result was computed (``../figures/*.png``)."""
+def stored_figures(session_dir: str | Path | None, result: dict | None = None) -> list[Path]:
+    """The PNG figures drawn when a stored result was computed: in the folder the result names
+    (``figures_dir``, written by ``workbench analyze ... --figures DIR``), else beside the session
+    (``../figures/*.png``, a run or campaign)."""
+    named = (result or {}).get("figures_dir")
+    if isinstance(named, str) and named and Path(named).is_dir():
+        return sorted(Path(named).glob("*.png"))
     if not session_dir:
         return []
     return sorted((Path(session_dir).parent / "figures").glob("*.png"))

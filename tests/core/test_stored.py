@@ -38,3 +38,16 @@ def test_figures_beside_the_session(tmp_path):
         (figs / name).write_text("")
     assert [p.name for p in stored_figures(session)] == ["a.png", "b.png"]
     assert stored_figures(None) == []
+
+
+def test_figures_in_the_folder_the_stored_result_names(tmp_path):
+    """``workbench analyze --figures DIR`` writes them into DIR: the stored result names it and wins."""
+    session = _campaign(tmp_path, {}, None)
+    (session.parent / "figures").mkdir()
+    (session.parent / "figures" / "beside.png").write_text("")
+    named = tmp_path / "elsewhere" / "figures"
+    named.mkdir(parents=True)
+    (named / "mag_free_quality.png").write_text("")
+    assert [p.name for p in stored_figures(session, {"figures_dir": str(named)})] == ["mag_free_quality.png"]
+    assert [p.name for p in stored_figures(session, {"figures_dir": str(tmp_path / "gone")})] == ["beside.png"]
+    assert [p.name for p in stored_figures(None, {"figures_dir": str(named)})] == ["mag_free_quality.png"]

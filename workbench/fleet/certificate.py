@@ -129,9 +129,10 @@ def _reference_equipment(manifests: list[dict]) -> tuple[list[dict], list[str]]:
     return equipment, notes
 
 
-def _figures(folder: Path | None) -> list[tuple[str, str]]:
-    """(title, base64 PNG) of the figures stored beside a session when its result was computed."""
-    return [(p.stem.replace("_", " "), base64.b64encode(p.read_bytes()).decode()) for p in stored_figures(folder)]
+def _figures(folder: Path | None, result: dict) -> list[tuple[str, str]]:
+    """(title, base64 PNG) of the figures drawn when the session's stored ``result`` was computed."""
+    return [(p.stem.replace("_", " "), base64.b64encode(p.read_bytes()).decode())
+            for p in stored_figures(folder, result)]
 
 
 def _sessions(cal: CalibrationSet, store, progress: Progress) -> tuple[list[dict], list[str]]:
@@ -148,7 +149,7 @@ def _sessions(cal: CalibrationSet, store, progress: Progress) -> tuple[list[dict
         if manifest is not None and manifest.get("id") != prov["id"]:
             manifest = None  # the folder now holds another recording
         result = results.get(prov["id"], {})
-        figures = _figures(Path(path)) if manifest is not None else []
+        figures = _figures(Path(path), result) if manifest is not None else []
         if manifest is None:
             notes.append(f"session {prov['id'][:8]} ({prov['procedure']}): recording not found; its rig, ambient "
                          "conditions and figures cannot be stated")
@@ -162,7 +163,7 @@ def _sessions(cal: CalibrationSet, store, progress: Progress) -> tuple[list[dict
                     "summary": [str(s) for s in result.get("summary", [])],
                     "warnings": [str(w) for w in result.get("warnings", [])],
                     "options": {k: option_text(v) for k, v in options.items()},
-                    "software": result.get("software_version", ""),
+                    "software": (result.get("software") or {}).get("workbench", ""),
                     "figures": figures, "manifest": manifest})
     return out, notes
 
