@@ -4,7 +4,9 @@ Runs what ``workbench run campaign --unit fixtures/units/industrial_mems.yaml --
 (recording, analysis, figures, the merged set; no store) in this process and its workers, and
 prints per procedure and phase (record, analyse, figures) the CPU seconds it took in the process
 that ran it, the procedure's wall time summed over its phases and the peak resident memory of
-that process; then the campaign's wall time, the CPU time of this process and its workers
+that process; per worker process the wall time it spent in jobs and not (start-up before the
+first job, waiting for another's result, the end: the balance of the schedule); then the
+campaign's wall time, the CPU time of this process and its workers
 together and the largest peak. On a shared machine the wall time depends on the load: the CPU
 time is the fairer figure, and ``--repeat`` takes the run with the least CPU. ``--workers 1``
 runs everything in order in this process (as before the campaign ran in parallel);
@@ -35,8 +37,10 @@ def _cpu(who) -> float:
     return r.ru_utime + r.ru_stime
 
 
-def campaign(unit: str, seed: int, out_dir: Path, figures: bool, workers: int | None) -> tuple[dict, float, float]:
-    """Run the campaign once: (usage per procedure and phase, wall s, CPU s of this process and its workers)."""
+def campaign(unit: str, seed: int, out_dir: Path, figures: bool, workers: int | None
+             ) -> tuple[dict, float, float, list[float]]:
+    """Run the campaign once: (usage per procedure and phase, wall s, CPU s of this process and its
+    workers, wall s each worker spent in jobs)."""
     from workbench.grades import draw_unit, load_spec
     from workbench.jobs import run_campaign
     from workbench.rigconfig import load_rig_config
@@ -48,7 +52,7 @@ def campaign(unit: str, seed: int, out_dir: Path, figures: bool, workers: int | 
     res = run_campaign(spec, truth, cfg, seed, out_dir, None, None, figures=figures, workers=workers)
     wall = time.perf_counter() - wall
     cpu = _cpu(resource.RUSAGE_SELF) + _cpu(resource.RUSAGE_CHILDREN) - cpu
-    return res.usage, wall, cpu
+    return res.usage, wall, cpu, res.worker_busy_s
 
 
 def main() -> None:
@@ -70,7 +74,7 @@ def main() -> None:
             run = campaign(args.unit, args.seed, out, not args.no_figures, args.workers)
         if best is None or run[2] < best[2]:
             best = run
-    usage, wall, cpu = best
+    usage, wall, cpu, busy = best
     print(f"{'procedure':14s} " + " ".join(f"{p + ' CPU':>12s}" for p in PHASES) +
           f" {'CPU s':>8s} {'wall s':>8s} {'peak MB':>8s}")
     for name, phases in usage.items():
@@ -79,6 +83,8 @@ def main() -> None:
         peak = max(phases.get(p, {}).get("peak_rss", 0) for p in PHASES)
         print(f"{name:14s} " + " ".join(f"{c:12.2f}" for c in cpus) + f" {sum(cpus):8.2f} {walls:8.2f} {peak / 1e6:8.0f}")
     peak = max(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)
+    for w, b in enumerate(busy):  # the rest of the campaign's wall time: start-up, waiting, the merge
+        print(f"worker {w}: {b:.2f} s in jobs, {wall - b:.2f} s not")
     print(f"campaign: {wall:.2f} s wall, {cpu:.2f} s CPU (this process and its workers), "
           f"largest process peak {peak / 1e3:.0f} MB; load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
 

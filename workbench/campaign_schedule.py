@@ -54,6 +54,7 @@ class Done:
     options: dict[int, dict] = field(default_factory=dict)  # the analysis options each ran with
     sessions: list[SessionInfo | None] = field(default_factory=list)
     usage: dict[int, dict[str, dict]] = field(default_factory=dict)
+    busy_s: list[float] = field(default_factory=list)  # per worker process: wall s spent in jobs (none in order)
 
 
 def run_plan(plan, progress_for: Callable[[str], Callable | None] | None = None, workers: int | None = None) -> Done:
@@ -113,7 +114,7 @@ def _handler(plan) -> Callable:
 
 def _in_parallel(plan, progress_for, n_workers: int) -> Done:
     n = len(plan.procs)
-    done = Done([None] * n, {}, [None] * n, {k: {} for k in range(n)})
+    done = Done([None] * n, {}, [None] * n, {k: {} for k in range(n)}, [0.0] * n_workers)
     to_record = deque(sorted(range(n), key=lambda k: -plan.planned_s(k)))  # the longest first
     held: dict[int, int] = {}  # procedure -> worker holding its recorded session
     to_save: dict[int, list[str]] = {}  # procedure -> its figures not saved yet, in order
@@ -163,6 +164,7 @@ def _in_parallel(plan, progress_for, n_workers: int) -> Done:
                     trackers[k](*payload)
                 continue
             value, usage = payload
+            done.busy_s[w] += usage["wall_s"]
             phase = key[0]
             if phase == "record":
                 held[k] = w

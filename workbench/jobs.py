@@ -233,12 +233,15 @@ class CampaignResult:
 
     ``usage``: per procedure and phase (``record``, ``analyse``, ``figures``), the wall and CPU
     seconds it took and the peak resident memory (bytes) of the process that ran it.
+    ``worker_busy_s``: per worker process, the wall seconds it spent running jobs (empty when
+    everything ran in order in this process); against the campaign's wall time, its idle time.
     """
 
     calibration: CalibrationSet
     results: dict[str, ProcedureResult] = field(default_factory=dict)
     out_dir: Path | None = None
     usage: dict[str, dict[str, dict]] = field(default_factory=dict)
+    worker_busy_s: list[float] = field(default_factory=list)
 
 
 @dataclass
@@ -380,4 +383,4 @@ def run_campaign(spec, truth, cfg: RigConfig, seed: int, out_dir: Path, store=No
                 store.add_result(name, s.id, s.serial, json.loads(result_json(r)), None)
             store.add_set(merged)
         store.write_together(write)
-    return CampaignResult(merged, results, out_dir, {plan.name(k): u for k, u in done.usage.items()})
+    return CampaignResult(merged, results, out_dir, {plan.name(k): u for k, u in done.usage.items()}, done.busy_s)

@@ -51,6 +51,7 @@ def test_a_real_rig_records_one_procedure_after_the_other_here():
     done = run_plan(plan, workers=2)
     assert plan.calls == [("record", os.getpid())] * 2  # in this process, in order
     assert [r["pid"] for r in done.results] == [os.getpid()] * 2
+    assert done.busy_s == []  # no worker processes
 
 
 def test_the_simulated_rig_runs_in_workers_and_hands_results_on_in_order():
@@ -59,3 +60,4 @@ def test_the_simulated_rig_runs_in_workers_and_hands_results_on_in_order():
     assert all(r["pid"] != os.getpid() for r in done.results)
     assert done.options[1] == {"after": [done.results[0]["pid"]]}  # b analysed once a was known
     assert set(done.usage[0]) == {"record", "analyse"}
+    assert len(done.busy_s) == 2 and sum(done.busy_s) > 0  # each worker's time in jobs, for the balance
