@@ -12,7 +12,7 @@ deviation is a sum of squared finite differences of ``x`` at lag ``m`` (tau = m 
 (NIST SP 1065 eq. 11, 18, 14.) Short records (up to :data:`COMPILED_WORK` squared differences
 in all) are summed with numpy, one reused buffer per lag; longer ones, and every MDEV, by the
 compiled kernels of :mod:`workbench.analysis.allan_kernels` (numba: cache-sized blocks, all lags
-per block, no temporaries the size of the record), whose ~0.9 s start-up only they repay. Both
+per block, no temporaries the size of the record), whose ~0.4 s start-up only they repay. Both
 equal allantools' ``oadev``/``ohdev``/``mdev`` (tested to a relative 1e-9).
 
 Public: :func:`deviation`, :func:`segment_deviation`, :func:`averaging_factors`, :func:`phase`, :func:`rate_buffer`,
