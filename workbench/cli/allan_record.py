@@ -142,34 +142,34 @@ def _parquet_columns(path: Path, columns: list[str] | None,
     wanted = cols + ([time_col] if t is not None else [])
     try:
         start = 0
-        for table in _pieces(pf, wanted):
-            for j in range(len(cols)):
-                _fill(table.column(j), buf[j, 1 + start:])
-            if t is not None:
-                _fill(table.column(len(cols)), t[start:])
-            start += table.num_rows
+        for rows, pieces in _pieces(pf, wanted):
+            for j, piece in enumerate(pieces):
+                _fill(piece, buf[j, 1 + start:] if j < len(cols) else t[start:])
+            start += rows
     except Exception as exc:
         raise AnalysisError(f"{path}: cannot read samples ({type(exc).__name__}: {str(exc)[:120]})") from None
+    finally:
+        pa.default_memory_pool().release_unused()  # the decode buffers pyarrow keeps for reuse
     return buf[:, 1:].T, t, cols
 
 
 def _pieces(pf, columns: list[str]):
-    """The file's rows in order, as pyarrow tables of ``columns``: one per row group when the groups
-    are small (:data:`PIECE_ROWS`), else batches of that many rows. Decoding a piece into the memory
-    pyarrow just released is several times faster than decoding whole columns into fresh memory."""
+    """The file's rows in order: (row count, iterator over the pyarrow arrays of ``columns``). One
+    column of one row group at a time when the groups are small (:data:`PIECE_ROWS`), else batches
+    of that many rows. Decoding a piece into the memory pyarrow just released is several times
+    faster than decoding whole columns into fresh memory, and keeps its pool to a few pieces."""
     meta = pf.metadata
     if all(meta.row_group(i).num_rows <= PIECE_ROWS for i in range(meta.num_row_groups)):
         for i in range(meta.num_row_groups):
-            yield pf.read_row_group(i, columns=columns, use_threads=False)
+            yield meta.row_group(i).num_rows, (pf.read_row_group(i, columns=[c], use_threads=False).column(0)
+                                               for c in columns)
     else:
-        import pyarrow as pa
-
         for batch in pf.iter_batches(batch_size=PIECE_ROWS, columns=columns, use_threads=False):
-            yield pa.Table.from_batches([batch])
+            yield batch.num_rows, iter(batch.columns)
 
 
 def _fill(column, out: np.ndarray) -> None:
-    """Copy a numeric pyarrow ChunkedArray into the start of ``out`` float64, nulls as NaN.
+    """Copy a numeric pyarrow Array or ChunkedArray into the start of ``out`` float64, nulls as NaN.
 
     From the chunks' data buffers: pyarrow's own ``to_numpy`` imports pandas (~0.5 s).
     """
@@ -177,7 +177,7 @@ def _fill(column, out: np.ndarray) -> None:
     import pyarrow as pa
 
     start = 0
-    for chunk in column.chunks:
+    for chunk in column.chunks if isinstance(column, pa.ChunkedArray) else [column]:
         if chunk.null_count or chunk.type != pa.float64():
             import pyarrow.compute as pc  # ~0.2 s: only for integer columns or nulls
 
