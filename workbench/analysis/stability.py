@@ -33,7 +33,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
 from workbench.errors import AnalysisError
@@ -232,12 +231,19 @@ def _gap_free(stat: str, x: np.ndarray, m: int, tau0: float) -> tuple[float, int
     """The statistics that need every point (reflections, subsequences, windows)."""
     n_x = len(x)
     tau = m * tau0
+    if stat == "mtie":
+        from numpy.lib.stride_tricks import sliding_window_view
+
+        w = sliding_window_view(x, m + 1)
+        return float(np.max(w.max(axis=1) - w.min(axis=1))), n_x - m
+    from workbench.analysis import stability_kernels as kern  # numba loads for these statistics only
+
     if stat == "totdev":
-        return float(np.sqrt(_totdev_sum(x, m) / (2.0 * tau ** 2 * (n_x - 2)))), n_x - 2
+        return float(np.sqrt(kern.totdev_sum(x, m) / (2.0 * tau ** 2 * (n_x - 2)))), n_x - 2
     if stat in ("mtotdev", "ttotdev"):
         if n_x - 3 * m + 1 < 1:
             return float("nan"), 0
-        v = _mtot_sum(x, m, False) / (2.0 * tau ** 2 * (n_x - 3 * m + 1))
+        v = kern.mtot_sum(x, m, False) / (2.0 * tau ** 2 * (n_x - 3 * m + 1))
         dev = np.sqrt(v) * (tau / np.sqrt(3.0) if stat == "ttotdev" else 1.0)
         return float(dev), n_x - 3 * m + 1
     if stat == "htotdev":
@@ -247,109 +253,13 @@ def _gap_free(stat: str, x: np.ndarray, m: int, tau0: float) -> tuple[float, int
             return float(np.sqrt(np.sum(d * d) / (6.0 * tau ** 2 * len(d)))), len(d)
         if len(y) - 3 * m + 1 < 1:
             return float("nan"), 0
-        return float(np.sqrt(_mtot_sum(y, m, True) / (len(y) - 3 * m + 1))), len(y) - 3 * m + 1
+        return float(np.sqrt(kern.mtot_sum(y, m, True) / (len(y) - 3 * m + 1))), len(y) - 3 * m + 1
     if stat == "theo1":
         if n_x - m < 1:
             return float("nan"), 0
-        s = _theo1_sum(x, m)
+        s = kern.theo1_sum(x, m)
         return float(np.sqrt(s / (0.75 * (n_x - m) * tau ** 2))), (n_x - m) * m // 2
-    if stat == "mtie":
-        from numpy.lib.stride_tricks import sliding_window_view
-
-        w = sliding_window_view(x, m + 1)
-        return float(np.max(w.max(axis=1) - w.min(axis=1))), n_x - m
     raise AssertionError(stat)
-
-
-@numba.njit(cache=True, nogil=True)
-def _mtot_sum(x, m, hadamard):  # pragma: no cover - compiled
-    """Sum over subsequences of 3m points of the mean squared second difference of m-point sums
-    of the half-average-detrended, evenly reflected (9m) subsequence (SP 1065 eq. 27; Stable32).
-
-    ``hadamard``: x is frequency data (the Hadamard total; slope per sample, centred index),
-    otherwise phase (modified total), divided by m^2 as mdev's inner sums.
-    """
-    n = x.shape[0]
-    total = 0.0
-    three = 3 * m
-    h1 = three // 2
-    h2 = (three + 1) // 2
-    dist = (0.5 * (three - 1) + 1.0) if three % 2 == 1 else 0.5 * three
-    star = np.empty(9 * m)
-    for i in range(n - three + 1):
-        mean1 = 0.0
-        for j in range(h1):
-            mean1 += x[i + j]
-        mean1 /= h1
-        mean2 = 0.0
-        for j in range(h2, three):
-            mean2 += x[i + j]
-        mean2 /= three - h2
-        slope = (mean2 - mean1) / dist
-        for j in range(three):
-            v = x[i + j] - slope * ((j - h1) if hadamard else j)
-            star[three + j] = v
-            star[three - 1 - j] = v
-            star[3 * three - 1 - j] = v
-        s1 = 0.0
-        s2 = 0.0
-        s3 = 0.0
-        for j in range(m):
-            s1 += star[j]
-            s2 += star[m + j]
-            s3 += star[2 * m + j]
-        acc = 0.0
-        for j in range(6 * m):
-            if j > 0:
-                s1 += star[j + m - 1] - star[j - 1]
-                s2 += star[j + 2 * m - 1] - star[m + j - 1]
-                s3 += star[j + 3 * m - 1] - star[2 * m + j - 1]
-            d = (s1 - 2.0 * s2 + s3) / m
-            acc += d * d
-        total += acc / (6.0 * m) / (6.0 if hadamard else 1.0)  # Hadamard: 1/6 <(second diff)^2>
-    return total
-
-
-@numba.njit(cache=True, nogil=True)
-def _reflected(x, k):  # pragma: no cover - compiled
-    """Point k of the phase extended by odd reflection at both ends (SP 1065 eq. 25): x[k] inside,
-    2 x[0] - x[-k] before the start, 2 x[L-1] - x[2L-2-k] after the end."""
-    n = x.shape[0]
-    if k < 0:
-        return 2.0 * x[0] - x[-k]
-    if k >= n:
-        return 2.0 * x[n - 1] - x[2 * n - 2 - k]
-    return x[k]
-
-
-@numba.njit(cache=True, nogil=True)
-def _totdev_sum(x, m):  # pragma: no cover - compiled
-    """Total-deviation sum over the centres x_1 .. x_{L-2} of (x*[t-m] - 2 x[t] + x*[t+m])^2, x* the
-    reflected extension (:func:`_reflected`), in one pass, partial sums of 4096 terms."""
-    n = x.shape[0]
-    total = 0.0
-    for b0 in range(1, n - 1, 4096):
-        part = 0.0
-        for t in range(b0, min(b0 + 4096, n - 1)):
-            d = _reflected(x, t - m) - 2.0 * x[t] + _reflected(x, t + m)
-            part += d * d
-        total += part
-    return total
-
-
-@numba.njit(cache=True, nogil=True)
-def _theo1_sum(x, m):  # pragma: no cover - compiled
-    """Theo1 double sum (SP 1065 eq. 30) for even m."""
-    n = x.shape[0]
-    h = m // 2
-    total = 0.0
-    for i in range(n - m):
-        s = 0.0
-        for d in range(h):
-            v = x[i] - x[i - d + h] + x[i + m] - x[i + d + h]
-            s += v * v / (h - d)
-        total += s
-    return total
 
 
 def _theoh(x: np.ndarray, rate: float, data_type: str, taus) -> Stability:
