@@ -31,7 +31,10 @@ drifts no more than 5x the white sensor noise over each correction interval, the
 "indicates itself to be at rest and non-rotating"), ``gyro_bias_error`` (rad/s per axis, of
 the position with the largest error) and ``positions`` (per position details, with ``turns``
 and ``initial_heading_error_deg``: the heading the alignment started from, gyrocompass or
-external, minus the table's); ``heading_source``.
+external, minus the table's; ``attitude_sigma_deg``; ``tilt_observed`` and ``level_sigma_deg``: at
+rest the tilt and the horizontal accelerometer bias are one quantity, so the roll / pitch sigma
+stays at that bias's prior / g while the level against the accelerometers is known to
+``level_sigma_deg``, said in the warnings; the turns separate them); ``heading_source``.
 """
 
 from __future__ import annotations
@@ -144,6 +147,7 @@ def _position(session: Session, group: list, samples, noise, cfg: zupt.ZuptConfi
         "heading_error_deg": _num(err[-1, 2]),
         "roll_error_60s_deg": _num(err[i60, 0]), "pitch_error_60s_deg": _num(err[i60, 1]),
         "attitude_sigma_deg": np.degrees(res.attitude_sigma[-1]).tolist(),
+        "level_sigma_deg": np.degrees(res.level_sigma).tolist(), "tilt_observed": res.tilt_observed,
         "velocity_error_mps": float(np.linalg.norm(res.velocity[-1])),
         "convergence_time_s": conv,
         "gyro_bias": res.gyro_bias[-1].tolist(), "gyro_bias_sigma": res.gyro_bias_sigma[-1].tolist(),
@@ -233,6 +237,7 @@ def analyze(session: Session, calibration: CalibrationSet | None = None, **optio
             row, res, err = _position(session, group, samples, noise, cfg, az, float(o["bias_reference_s"]))
             rows.append(row)
             runs.append({"result": res, "errors_deg": err})
+            warnings += [f"{mode} {row['label']}: {w}" for w in res.warnings] if mode == "calibrated" else []
         blocks[mode] = _block(rows)
         payload[mode] = runs
     result = {"raw": blocks["raw"], "calibrated": blocks["calibrated"], "calibration_id": calibration.id,

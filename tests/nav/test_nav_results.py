@@ -62,7 +62,9 @@ def zupt_run():
 
 def test_zupt_summary_in_lab_units_matches_the_fields_and_the_truth(zupt_run):
     res = zupt_run
-    assert isinstance(res, AnalysisResult) and res.warnings == ()
+    # at rest the tilt is not observed apart from the horizontal accel bias: its sigma is the prior / g
+    assert isinstance(res, AnalysisResult) and len(res.warnings) == 1 and not res.tilt_observed
+    assert res.warnings[0].startswith("roll/pitch not observed apart from the horizontal accelerometer bias")
     att, vel, gyro, accel = res.summary()
     # attitude: three values to 0.001° then three 2-digit sigmas, in degrees
     assert att.startswith(f"ZUPT: roll, pitch, heading at {res.t[-1]:.1f} s:") and att.endswith(" °")
@@ -97,7 +99,9 @@ def test_zupt_to_dict_is_strict_json_in_si(zupt_run):
     np.testing.assert_allclose(d["gyro_bias"], res.gyro_bias[-1])  # rad/s
     np.testing.assert_allclose(d["velocity"], res.velocity[-1])  # m/s
     assert d["t_start"] == res.t_start and d["convergence_time"] == res.convergence_time()
-    assert d["measurements"] == list(res.measurements) and d["warnings"] == []
+    assert d["measurements"] == list(res.measurements) and d["warnings"] == list(res.warnings)
+    # the level against the accelerometers is what the ZUPT holds: far below the tilt's prior sigma
+    assert d["tilt_observed"] is False and np.all(np.array(d["level_sigma"]) < 0.1 * np.array(d["attitude_sigma"][:2]))
 
 
 # LNS: 40 s at rest, then ~70 s of road with GPS to the end; the odometer reads +2 %

@@ -69,6 +69,7 @@ def zupt_dict(r) -> dict:
     (None = never)."""
     return {"t_start": float(r.t_start), "t_end": float(r.t[-1]), "rph": json_value(r.rph[-1]),
             "attitude_sigma": json_value(r.attitude_sigma[-1]), "initial_rph": json_value(r.initial_rph),
+            "level_sigma": json_value(r.level_sigma), "tilt_observed": r.tilt_observed,
             "position": json_value(r.position[-1]), "velocity": json_value(r.velocity[-1]),
             "accel_bias": json_value(r.accel_bias[-1]), "accel_bias_sigma": json_value(r.accel_bias_sigma[-1]),
             "gyro_bias": json_value(r.gyro_bias[-1]), "gyro_bias_sigma": json_value(r.gyro_bias_sigma[-1]),

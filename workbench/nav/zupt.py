@@ -118,7 +118,10 @@ class ZuptResult:
     ``accel_bias`` / ``gyro_bias`` (E, 3) body-frame estimates with ``*_sigma`` 1-sigma;
     ``drift_velocity`` (E,) m/s and ``drift_attitude`` (E,) rad: how far the free mechanisation
     moved from the frozen solution over the interval before each correction (``drift_attitude``
-    NaN over an interval in which the table turns); ``weights``
+    NaN over an interval in which the table turns); ``level_sigma`` (2,) the end 1-sigma, rad, of the
+    tilt about north and east relative to the accelerometers' level (``dtheta_NE + S db_a``, what the
+    zero-velocity update observes at rest; the tilt itself is known only to the accel-bias prior / g
+    until the table turns, see :attr:`tilt_observed`); ``weights``
     (E, m) the gain scale factors of eq. 47; ``attitude`` the body-to-NED Rotation (E,);
     ``initial_rph`` the frozen roll, pitch, heading; ``t_start`` the EKF start time, s;
     ``drift_noise`` (m/s, rad) the 1-sigma norms of the velocity and attitude that white
@@ -142,11 +145,23 @@ class ZuptResult:
     t_start: float
     measurements: tuple[str, ...]
     drift_noise: tuple[float, float]
+    level_sigma: np.ndarray
+
+    @property
+    def tilt_observed(self) -> bool:
+        """Whether the filter reduced the roll / pitch sigma below half its first value (the turns of the
+        table separate the tilt from the horizontal accelerometer bias; at rest they are one quantity)."""
+        return bool(np.all(self.attitude_sigma[-1, :2] < 0.5 * self.attitude_sigma[0, :2]))
 
     @property
     def warnings(self) -> tuple[str, ...]:
         """One-line notes of the run (the result protocol's ``warnings``)."""
-        return ()
+        if self.tilt_observed:
+            return ()
+        tilt, level = (np.degrees(self.attitude_sigma[-1, :2]).max(), np.degrees(self.level_sigma).max())
+        return (f"roll/pitch not observed apart from the horizontal accelerometer bias (the unit does not turn): "
+                f"their 1-sigma {tilt:.2g}° is that bias's prior / g; the level against the accelerometers is "
+                f"known to {level:.2g}°",)
 
     def to_dict(self) -> dict:
         """The end state, JSON-ready, SI (:func:`workbench.nav.nav_results.zupt_dict`)."""
@@ -376,10 +391,14 @@ def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: fl
         hist["dv"].append(drift_v)
         hist["da"].append(drift_a)
         hist["w"].append(weights)
+    h_level = np.zeros((2, N_STATES))
+    h_level[:, 6:8] = np.eye(2)
+    h_level[:, BA] = S[:2]
     arr = {k: np.array(v) for k, v in hist.items() if k != "w"}
     att = Rotation.from_matrix(arr["c"])
     return ZuptResult(arr["t"], euler_rph(att), arr["rph_sig"], arr["pos"], arr["vel"], arr["ba"], arr["bas"],
                       arr["bg"], arr["bgs"], arr["dv"], arr["da"], np.array(hist["w"]), att,
                       np.array([roll0, pitch0, heading]), float(samples.t[n_level]), tuple(use),
                       (float(np.linalg.norm(noise.accel_white) * np.sqrt(n_blk * dt)),
-                       float(np.linalg.norm(noise.gyro_white) * np.sqrt(n_blk * dt))))
+                       float(np.linalg.norm(noise.gyro_white) * np.sqrt(n_blk * dt))),
+                      np.sqrt(np.diag(h_level @ Pm @ h_level.T)))

@@ -1,0 +1,54 @@
+"""ZUPT / ZARUPT alignment: normalised errors over seeds and paper 001's heading figures (Fig. 4-1, 5-4, 5-5).
+
+Closed-form synthetic table data (``tests/nav/synthetic.py``), HG1700 noise of paper 001 table 5-1
+(ARW 0.125 °/√h, VRW 0.065 m/s/√h), true biases drawn from the filter's priors (3 °/h, 1 mg), see
+:func:`tests.nav.test_zupt.normalised_errors`. Prints, per case (static with the heading held /
+rotating with four 90° turns and no external heading; ZUPT / ZUPT + ZARUPT), the rms of error / sigma
+of roll, pitch, heading, accel and gyro bias over the seeds with the chi-square 95 % band, then the
+final heading sigma and rms heading error of the rotating gyrocompass case beside the paper's figures.
+
+    python benchmarks/zupt_consistency.py [--seeds 20] [--hold 60] [--paper-hold 240]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+from scipy.stats import chi2
+
+from tests.nav.test_zupt import normalised_errors
+
+LABELS = ("roll", "pitch", "heading", "ba_x", "ba_y", "ba_z", "bg_x", "bg_y", "bg_z")
+
+
+def main() -> None:
+    """Command-line entry: print the consistency table and the heading figures."""
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--seeds", type=int, default=20)
+    p.add_argument("--hold", type=float, default=60.0, help="hold of the consistency runs, s")
+    p.add_argument("--paper-hold", type=float, default=240.0, help="hold of the paper-figure runs, s (20 min)")
+    a = p.parse_args()
+    t0 = time.perf_counter()
+    lo, hi = np.sqrt(chi2.ppf([0.025, 0.975], a.seeds) / a.seeds)
+    print(f"rms(error / sigma) over {a.seeds} seeds, {a.hold:g} s holds; chi-square 95 % band [{lo:.2f}, {hi:.2f}]")
+    print(f"{'case':18s} " + " ".join(f"{x:>7s}" for x in LABELS))
+    for profile in ("static", "rotating"):
+        for zarupt in (False, True):
+            z, _, _ = normalised_errors(profile, zarupt, range(a.seeds), a.hold)
+            rms = np.sqrt(np.mean(z ** 2, axis=0))
+            print(f"{profile + (' ZARUPT' if zarupt else ' ZUPT'):18s} " + " ".join(f"{x:7.2f}" for x in rms))
+    total = a.paper_hold + 4 * (a.paper_hold + 9.0)
+    print(f"\nrotating, gyrocompass, {total / 60:.0f} min ({a.paper_hold:g} s holds, four 90° turns), {a.seeds} seeds")
+    print(f"{'':8s} {'mean sigma':>10s} {'rms error':>10s} {'paper 001':>28s}")
+    paper = {False: "~3° (Fig. 5-5)", True: "< 1° (Fig. 5-5), ~0.6° rms (5-4)"}
+    for zarupt in (False, True):
+        _, err, sig = normalised_errors("rotating", zarupt, range(a.seeds), a.paper_hold)
+        print(f"{'ZARUPT' if zarupt else 'ZUPT':8s} {sig.mean():9.2f}° {np.sqrt(np.mean(err ** 2)):9.2f}° "
+              f"{paper[zarupt]:>28s}")
+    print(f"{time.perf_counter() - t0:.0f} s")
+
+
+if __name__ == "__main__":
+    main()
