@@ -11,6 +11,7 @@ sigmas z is N(0, 1): rms z ~ 1 (target <= 1.5 on real recordings, issue 21 item 
     python benchmarks/split_half_z.py runs/imucal --procedure ferraris -o position_sigma_deg=auto
     python benchmarks/split_half_z.py runs/unmoved-* --procedure multiposition --across
     python benchmarks/split_half_z.py runs/tilt-sphere --procedure magnetometer --sim 100
+    python benchmarks/split_half_z.py runs/tilt-sphere --procedure magnetometer --handheld 12 --still 3
 
 ``--across``: a check that no scaling from a split can make circular: every recording fitted
 whole, z between recordings of the same board for each coefficient both observe.
@@ -195,6 +196,46 @@ def sim_coverage(seeds: int = 100) -> None:
               f"{band(len(h))})")
 
 
+def handheld_coverage(seeds: int = 12, still_s: float = 0.0) -> None:
+    """Coverage of the hand-held magnetometer fit's 1-sigma intervals (``calibrate_free``) against the virtual
+    lab's truth: consumer_9axis boards turned by hand for 60 s (``workbench/sim/handheld.py``; ``still_s``
+    holds between tumbles, 0 = tumbled throughout), with the sigmas from the record's blocks in time
+    (``mag_holdout.jackknife_sigmas``) and without them (the noise model alone)."""
+    from workbench.analysis import mag_free
+    from workbench.errors import AnalysisError
+    from workbench.grades import draw_unit, load_spec
+    from workbench.sim.handheld import handheld_session
+
+    spec = load_spec("consumer_9axis")
+    keep = mag_free.jackknife_sigmas
+    print(f"sim: hand-held magnetometer, {seeds} boards of 60 s, holds {still_s:g} s (truth known)")
+    for label, fn in (("block jackknife", keep), ("noise model only", lambda fitter, fit, n: fit)):
+        mag_free.jackknife_sigmas = fn
+        z: dict[str, list[float]] = {"hard iron": [], "soft iron": [], "field norm": []}
+        try:
+            for seed in range(seeds):
+                session, truth = handheld_session(draw_unit(spec, seed), seed, duration_s=60.0, still_s=still_s,
+                                                  temperature_c=spec.t_ref_c)
+                try:
+                    fit = mag_free.calibrate_free(session, robust="auto", accel_model=truth.unit.accel).fit
+                except AnalysisError as exc:
+                    print(f"  seed {seed}: not fitted ({str(exc)[:80]})")
+                    continue
+                m = truth.unit.mag
+                b = m.apply(np.zeros((3, 3)), None, np.full(3, spec.t_ref_c))[0]
+                a = (m.apply(np.eye(3), None, np.full(3, spec.t_ref_c)) - b).T
+                k = np.cbrt(np.linalg.det(a))  # det(I + M) = 1 fixes the fit's scale
+                z["hard iron"] += list((fit.bias - b) / fit.bias_sigma)
+                z["soft iron"] += list(((fit.soft_iron - a / k) / fit.soft_iron_sigma).ravel())
+                z["field norm"].append((fit.field_norm_ut - np.linalg.norm(truth.field_ned) * k) / fit.field_norm_sigma)
+        finally:
+            mag_free.jackknife_sigmas = keep
+        for key, v in z.items():
+            v = np.array([x for x in v if np.isfinite(x)])
+            print(f"  {label:17s} {key:10s} {len(v):4d} z: coverage {np.mean(np.abs(v) < 1):.2f}, "
+                  f"rms z {np.sqrt(np.mean(v ** 2)):.2f}")
+
+
 def main(argv: list[str] | None = None) -> int:
     from workbench.registry import procedure
     from workbench.session import load_session
@@ -205,6 +246,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--across", action="store_true", help="z between whole recordings of one unit instead")
     ap.add_argument("--sim", type=int, default=0, metavar="SEEDS",
                     help="also print the coverage against the virtual lab's truth over SEEDS tumbles")
+    ap.add_argument("--handheld", type=int, default=0, metavar="SEEDS",
+                    help="also print the hand-held magnetometer fit's coverage against the truth over SEEDS boards")
+    ap.add_argument("--still", type=float, default=0.0, help="--handheld: still holds (s) between tumbles")
     ap.add_argument("-o", "--option", action="append", default=[], help="analysis option key=value (JSON value)")
     ap.add_argument("--json", action="store_true", help="print the rows as JSON")
     args = ap.parse_args(argv)
@@ -218,6 +262,8 @@ def main(argv: list[str] | None = None) -> int:
     proc = procedure(args.procedure)
     if args.sim:
         sim_coverage(args.sim)
+    if args.handheld:
+        handheld_coverage(args.handheld, args.still)
     if args.across:
         from workbench import units
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import lfilter
 
-from workbench.analysis.effective_n import (ess, ess_scale, mean_sigma, misfit_scale, moving_block_bootstrap,
+from workbench.analysis.effective_n import (block_jackknife, block_refits, ess, ess_scale, mean_sigma, misfit_scale, moving_block_bootstrap,
                                             sigma_scale, tau_int)
 
 
@@ -81,3 +81,28 @@ def test_honest_covariance_of_a_mean_is_tau_times_the_white_one():
     tau = tau_int(r)
     assert np.isclose(honest_covariance(cov, r)[0, 0], cov[0, 0] * tau)
     assert np.isclose(honest_covariance(cov, r, np.ones((len(r), 1)))[0, 0], cov[0, 0] * tau)
+
+
+def test_block_jackknife_of_a_mean_and_the_move_between_blocks():
+    """Mean of 20000 white samples (sigma 1): the jackknife sigma over 5 blocks is 1/sqrt(N) within its
+    own spread (a variance from 4 degrees of freedom: over 200 records the mean of sigma_J^2 N is 1 within
+    4 sqrt(2 / 4 / 200) = 0.2), and the between-block part is small (E[max(0, chi2_4 / 4 - 1)] ~ 0.3 of
+    K / N). A mean that steps by 1 half way (blocks 0-1 at 0, 3-4 at 1): the pseudo-values are the block
+    means (0, 0, 0.5, 1, 1), variance 0.25, so the between-block sigma is ~0.5 and the jackknife's ~0.22."""
+    rng = np.random.default_rng(3)
+    n = 20000
+    jk2, between2 = [], []
+    for _ in range(200):
+        x = rng.standard_normal(n)
+        full = np.array([x.mean()])
+        jk, between = block_jackknife(full, block_refits(lambda keep: np.array([x[keep].mean()]), n, 5),
+                                      np.array([1 / np.sqrt(n)]))
+        jk2.append(jk[0] ** 2 * n)
+        between2.append(between[0] ** 2 * n)
+    assert abs(np.mean(jk2) - 1.0) < 0.2
+    assert np.mean(between2) < 0.6 * 5
+    step = np.r_[np.zeros(n // 2), np.ones(n // 2)] + 0.01 * rng.standard_normal(n)
+    refits = block_refits(lambda keep: np.array([step[keep].mean(), np.nan]), n, 5)
+    jk, between = block_jackknife(np.array([step.mean(), np.nan]), refits, np.array([0.01 / np.sqrt(n), np.nan]))
+    assert abs(between[0] - 0.5) < 0.01 and abs(jk[0] - np.sqrt(0.25 / 5)) < 0.01
+    assert np.isnan(jk[1]) and np.isnan(between[1])

@@ -98,22 +98,6 @@ def test_free_points_need_a_free_step():
         free_points(session)
 
 
-def test_split_half_scale_widens_only_what_disagrees():
-    from workbench.analysis.mag_fit import MagFit
-    from workbench.analysis.mag_holdout import scaled_sigmas, split_half_scale
-
-    def fit(bias):
-        return MagFit("ellipsoid", np.asarray(bias, float), np.full(3, 0.1), np.eye(3), np.full((3, 3), 1e-3),
-                      50.0, 0.05, 0.1, 100, "det")
-
-    # hard iron differs by (0.3, 0, 0) µT with sigma 0.1 each: z = 0.3 / sqrt(0.02) = 2.12 on one of 3 axes
-    scales = split_half_scale(fit([0.3, 0, 0]), fit([0, 0, 0]))
-    assert scales["hard iron"][1] == pytest.approx(np.sqrt(2.12132**2 / 3), rel=1e-4)
-    assert scales["soft iron"] == (1.0, 0.0) and scales["field norm"] == (1.0, 0.0)
-    wide = scaled_sigmas(fit([0, 0, 0]), {g: k for g, (k, _) in scales.items()})
-    assert np.allclose(wide.bias_sigma, 0.1 * scales["hard iron"][0]) and np.allclose(wide.soft_iron_sigma, 1e-3)
-
-
 def test_a_unit_left_still_is_refused_naming_the_cloud():
     unit = draw_unit(SPEC, 6)
     session, _ = handheld_session(unit, 6, duration_s=20.0, still_s=60.0)  # never turned
@@ -131,3 +115,23 @@ def test_a_turn_declared_by_hand_never_uses_its_table_angle():
     result = proc.analyze(dc_replace(session, steps=[step]))
     assert result.result["method"] != "attitude" and "step 0 (by hand, no table attitude)" in result.result["reason"]
     assert "vs table" not in "\n".join(result.summary)
+
+
+def test_sigmas_cover_the_truth_over_boards_tumbled_by_hand():
+    # 8 boards tumbled by hand for 60 s without holds (correlated misfit along the motion: the noise model
+    # alone covers the soft iron in 42 % of these 72 cases, rms z 1.96; the block jackknife 71 %, rms z 1.24). The 1-sigma
+    # coverage must reach the binomial band of 68.3 %: at least 0.683 - 3 sqrt(0.683 * 0.317 / n) (0.41 for the
+    # 24 hard-iron z, 0.52 for the 72 soft-iron z), and not cover everything (rms z over 0.4: not inflated
+    # beyond use)
+    hard, soft = [], []
+    for seed in range(8):
+        session, truth = handheld_session(draw_unit(SPEC, seed), seed, duration_s=60.0, still_s=0.0,
+                                          temperature_c=T_REF)
+        fit = calibrate_free(session, robust="auto", accel_model=truth.unit.accel).fit
+        b, a = _truth_at(truth.unit.mag, T_REF)
+        k = np.cbrt(np.linalg.det(a))
+        hard += list((fit.bias - b) / fit.bias_sigma)
+        soft += list(((fit.soft_iron - a / k) / fit.soft_iron_sigma).ravel())
+    for z in (np.array(hard), np.array(soft)):
+        assert np.mean(np.abs(z) < 1) >= 0.683 - 3 * np.sqrt(0.683 * 0.317 / len(z))
+        assert np.sqrt(np.mean(z**2)) > 0.4

@@ -1,4 +1,4 @@
-"""Truth-free quality of a hand-held magnetometer fit and the split-half sigma check
+"""Truth-free quality of a hand-held magnetometer fit and its sigmas from the refits along time
 (workbench/analysis/mag_holdout.py) on simulated points with a known calibration.
 
 Points: a unit at random attitudes in a field of 48 µT, dip 60°; raw = S h + b with a known soft
@@ -12,8 +12,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from workbench.analysis.mag_fit import MagFit
-from workbench.analysis.mag_holdout import (GROUPS, figures_of, halves, holdout_quality, point_values,
-                                            scaled_sigmas, split_half_scale)
+from workbench.analysis.mag_holdout import figures_of, halves, holdout_quality, jackknife_sigmas, point_values
+from workbench.errors import AnalysisError
 
 B, DIP, S_UT = 48.0, np.radians(60.0), 0.2
 FIELD = B * np.array([np.cos(DIP), 0.0, np.sin(DIP)])
@@ -86,35 +86,26 @@ def test_held_out_figures_of_a_fixed_calibration_and_the_baseline():
     assert q.n_points == n and len(q.series["fit_norm"]) == n
 
 
-def test_split_half_scale_is_one_for_agreeing_halves_and_the_rms_z_otherwise():
-    """Two fits whose coefficients are drawn around the truth with their stated sigmas: z ~ N(0, 1),
-    so over 300 pairs the mean of rms z^2 is 1 per group (sigma of that mean: sqrt(2 / (k 300)) for k
-    coefficients; 4 sigma). Sigmas stated 3x too small: rms z ~ 3 and the scale follows it."""
-    rng = np.random.default_rng(6)
-    sb, ss, sn = 0.1, 1e-3, 0.05
-    rms2 = {g: [] for g in GROUPS}
-    for _ in range(300):
-        a, b = (_truth_fit(bias=BIAS + rng.normal(0, sb, 3), soft_iron=SOFT + rng.normal(0, ss, (3, 3)),
-                           field_norm_ut=B + rng.normal(0, sn)) for _ in range(2))
-        for g, (scale, rms) in split_half_scale(a, b).items():
-            assert scale == max(1.0, rms)
-            rms2[g].append(rms ** 2)
-    for g, k in zip(GROUPS, (3, 9, 1)):
-        assert np.mean(rms2[g]) == pytest.approx(1.0, abs=4 * np.sqrt(2 / (k * 300))), g
-    a = _truth_fit(bias=BIAS + rng.normal(0, 3 * sb, 3))
-    b = _truth_fit(bias=BIAS + rng.normal(0, 3 * sb, 3))
-    # with 3 coefficients one draw of rms z^2 / 9 is chi2_3 / 3: within [0.02, 4.6] at 1e-3 each side
-    assert 0.02 * 9 < split_half_scale(a, b)["hard iron"][1] ** 2 < 4.6 * 9
+def test_jackknife_sigmas_floor_by_the_refits_and_keep_unobserved_ones():
+    """A fitter whose hard iron x is the mean of per-point values that step by 1 µT half way through the
+    record (a board whose hard iron moves): over 5 blocks the pseudo-values are (0, 0, 0.5, 1, 1) µT (variance
+    0.25 µT²), so the jackknife sigma is sqrt(0.25 / 5) = 0.22 µT, the between-block one sqrt(0.25 - 5 * 0.1²)
+    = 0.45 µT and the x sigma the largest of 0.1, 0.22 and 0.45 µT; y (constant) keeps its 0.1 µT; an unobserved
+    sigma (NaN) stays NaN; a refit that fails leaves the sigmas as they are."""
+    n = 1000
+    x = np.r_[np.zeros(n // 2), np.ones(n // 2)]
 
+    def fitter(keep):
+        return _truth_fit(bias=BIAS + [x[keep].mean(), 0.0, 0.0], bias_sigma=np.array([0.1, 0.1, np.nan]))
 
-def test_unobserved_coefficients_are_left_out_and_sigmas_scale_per_group():
-    a = _truth_fit(bias=BIAS + [0.1, 0.0, 0.0], bias_sigma=np.array([0.1, np.nan, 0.1]))
-    b = _truth_fit()
-    rms = split_half_scale(a, b)["hard iron"][1]
-    assert rms == pytest.approx(0.5)  # z = 0.1 / hypot(0.1, 0.1) on x, 0 on z, y unobserved: sqrt(0.5 / 2)
-    fit = scaled_sigmas(_truth_fit(declination_sigma=None), {"hard iron": 2.0, "soft iron": 3.0})
-    np.testing.assert_allclose(fit.bias_sigma, 0.2)
-    np.testing.assert_allclose(fit.soft_iron_sigma, 3e-3)
-    assert fit.field_norm_sigma == 0.05 and fit.dip_sigma == pytest.approx(3e-3)
-    assert fit.declination_sigma is None
-    np.testing.assert_allclose(fit.alignment_sigma, 3e-3)
+    fit = jackknife_sigmas(fitter, fitter(np.ones(n, bool)), n, blocks=5)
+    assert fit.bias_sigma[0] == pytest.approx(np.sqrt(0.25 - 5 * 0.1**2), rel=1e-6)
+    assert fit.bias_sigma[1] == pytest.approx(0.1) and np.isnan(fit.bias_sigma[2])
+    np.testing.assert_allclose(fit.soft_iron_sigma, 1e-3)
+    assert fit.field_norm_sigma == pytest.approx(0.05) and fit.dip_sigma == pytest.approx(1e-3)
+
+    def failing(keep):
+        raise AnalysisError("degenerate")
+
+    whole = fitter(np.ones(n, bool))
+    assert jackknife_sigmas(failing, whole, n) is whole

@@ -18,7 +18,11 @@ effective-sample-size form); :func:`mean_sigma` the honest sigma of the
 mean of a static record; :func:`tau_int_records` one correlation time from several records (the
 static steps of a session); :func:`moving_block_bootstrap` the distribution of any statistic by
 resampling blocks of consecutive samples (Kunsch 1989), a check that needs no model of the
-correlation.
+correlation; :func:`block_refits` and :func:`block_jackknife` the sigma of a fit's outputs from refits that
+each leave out one of K contiguous blocks in time (delete-a-block jackknife, Kunsch 1989 sec. 2)
+and how much they move between blocks beyond the noise: they see what a stationary correlation
+model cannot, a model misfit or a coefficient that changes along the record (a hand-held record
+visits its orientations one stretch after the other).
 
 References: A. Sokal, "Monte Carlo methods in statistical mechanics" (1996), sec. 3 (the
 automatic window); H. Kunsch, Ann. Statist. 17 (1989) 1217 (the moving-block bootstrap);
@@ -157,6 +161,36 @@ def moving_block_bootstrap(stat: Callable[[np.ndarray], np.ndarray], data: np.nd
         idx = (starts[:, None] + offsets[None, :]).ravel()[:n]
         out.append(np.asarray(stat(data[idx])))
     return np.array(out)
+
+
+def block_refits(stat: Callable[[np.ndarray], np.ndarray], n: int, blocks: int) -> np.ndarray:
+    """``stat`` (P,) refitted ``blocks`` times over ``n`` points in time order, each time without one of
+    ``blocks`` contiguous blocks: (K, P). ``stat(keep)`` computes it from the points of a (n,) bool mask."""
+    keep = np.ones(n, bool)
+    out = []
+    for part in np.array_split(np.arange(n), blocks):
+        keep[part] = False
+        out.append(np.asarray(stat(keep), float))
+        keep[part] = True
+    return np.array(out)
+
+
+def block_jackknife(full: np.ndarray, refits: np.ndarray, sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(jackknife sigma, between-block sigma) (P,) of a statistic from its :func:`block_refits` (K, P).
+
+    ``full`` (P,) the statistic on all points, ``sigma`` (P,) its sigma from a model of the noise
+    (e.g. :func:`honest_covariance`). Jackknife: ``sigma_J^2 = (K - 1) / K sum_k (s_k - mean s)^2``.
+    Between blocks: the pseudo-values ``K full - (K - 1) s_k`` estimate the statistic on each block
+    alone, each with variance ``K sigma^2`` if the statistic is the same along the record; their
+    variance beyond that (``max(0, var - K sigma^2)``) is how much it moves from one stretch of the
+    record to the next (a random effect, as the Paule-Mandel between-step variance of the static fits).
+    Each block must span several correlation times. NaN entries stay NaN.
+    """
+    k = len(refits)
+    jk = np.sqrt((k - 1) / k * np.sum((refits - refits.mean(axis=0)) ** 2, axis=0))
+    pseudo = k * np.asarray(full, float) - (k - 1) * refits
+    between = np.clip(pseudo.var(axis=0, ddof=1) - k * np.square(sigma), 0.0, None)
+    return jk, np.sqrt(between)
 
 
 def honest_covariance(cov: np.ndarray, residuals: np.ndarray, jac: np.ndarray | None = None) -> np.ndarray:

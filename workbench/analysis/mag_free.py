@@ -14,7 +14,7 @@ quasi-static blocks (norm within ``QUASI_STATIC_TOL`` of local gravity).
 
 :func:`calibrate_free` checks that the data support a fit (:func:`_candidates`), chooses between the
 constant-dip fit and the ellipsoid by their held-out field-to-gravity angle spread (:func:`_choose`),
-and attaches the truth-free quality figures and the split-half check of the sigmas
+and attaches the truth-free quality figures and the sigmas from the record's blocks in time
 (:mod:`workbench.analysis.mag_holdout`).
 
 Public: :data:`QUASI_STATIC_TOL`, :class:`FreeData`, :func:`hand_steps`, :func:`free_points`,
@@ -30,7 +30,7 @@ import numpy as np
 from workbench.analysis import mag_ellipsoid, mag_motion, mag_quality, mag_spikes, stationarity
 from workbench.analysis.mag_attitude import down_direction
 from workbench.analysis.mag_fit import MagFit
-from workbench.analysis.mag_holdout import Fitter, halves, held_out, holdout_quality, scaled_sigmas, split_half_scale
+from workbench.analysis.mag_holdout import Fitter, halves, held_out, holdout_quality, jackknife_sigmas
 from workbench.analysis.mag_quality import gravity_spread
 from workbench.analysis.mag_select import Choice
 from workbench.analysis.magnetometer import MIN_POINTS, MagCalibration, MagPoints, calibrate, fit_method
@@ -318,21 +318,6 @@ def calibrate_free(session: Session, method: str = "auto", robust: bool | str = 
                     reference=reference, source=session.name, data=data.describe(), choice=choice,
                     accel_compensated=True)
     quality = holdout_quality(fitter(cal.fit.method), cal.fit, data.mag, accel, data.t, q)
-    _, first, second = halves(data.t)
-    try:
-        half_a, half_b = fitter(cal.fit.method)(first), fitter(cal.fit.method)(second)
-        scales = split_half_scale(half_a, half_b)
-    except AnalysisError:
-        scales = {}
-    warnings = cal.warnings
-    fit = cal.fit
-    if any(k > 1.0 for k, _ in scales.values()):
-        fit = scaled_sigmas(fit, {g: k for g, (k, _) in scales.items()})
-        shown = ", ".join(f"{g} x{k:.2f} (rms z {z:.2f})" for g, (k, z) in scales.items() if k > 1.0)
-        if scales.get("hard iron", (1.0, 0.0))[0] > 1.0:
-            drift = half_b.bias - half_a.bias
-            shown += f"; the hard iron moves by ({', '.join(f'{v:+.2f}' for v in drift)}) µT from the first half to the second"
-        warnings = (*warnings, f"sigmas scaled where the fits of the two halves in time differ by more than their "
-                               f"sigmas (model misfit or correlated residuals): {shown}")
-    return replace(cal, fit=fit, warnings=warnings, free_quality=quality,
+    fit = jackknife_sigmas(fitter(cal.fit.method), cal.fit, len(data.t))
+    return replace(cal, fit=fit, free_quality=quality,
                    motion=None if data.timing is None else data.timing.to_dict())

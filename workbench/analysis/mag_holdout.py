@@ -1,18 +1,19 @@
-"""Truth-free quality of a hand-held magnetometer fit, and what the halves of a record say about its sigmas.
+"""Truth-free quality of a hand-held magnetometer fit, and sigmas from the record's structure along time.
 
 - :func:`holdout_quality`: the figures printed with every hand-held fit (:class:`FreeQuality`): the RMS
   of the calibrated field norm (% of the fitted norm, over all points) and the spread (standard
   deviation, rad) of the field-to-gravity angle (over the points whose specific force is gravity), in
   sample and held out (fitted on the first half in time, judged on the second), for the fit and for a
   plain 10-coefficient algebraic ellipsoid on the same points.
-- :func:`split_half_scale`, :func:`scaled_sigmas`: the fits of the two halves in time must agree within
-  their sigmas; per group (hard iron, soft iron, field norm) the rms z of their difference scales the
-  full fit's sigmas when it exceeds 1 (model misfit: a hand-held record's residuals depend on where the
-  hand took the unit).
+- :func:`jackknife_sigmas`: the fit refitted without each of :data:`JACKKNIFE_BLOCKS` contiguous blocks
+  in time; each sigma covers the refits' spread (delete-a-block jackknife) and how much the coefficient
+  moves from one block to the next beyond the noise (model misfit: a hand-held record's residuals depend
+  on where the hand took the unit). The halves of a record are left to validate the sigmas
+  (``benchmarks/split_half_z.py``), never to scale them.
 
 Used by :mod:`workbench.analysis.mag_free`. Public: :class:`FitFigures`, :class:`FreeQuality`,
 :func:`point_values`, :func:`figures_of`, :func:`halves`, :func:`held_out`, :func:`holdout_quality`,
-:data:`GROUPS`, :func:`split_half_scale`, :func:`scaled_sigmas`.
+:data:`JACKKNIFE_BLOCKS`, :func:`jackknife_sigmas`.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from workbench.analysis import mag_ellipsoid
+from workbench.analysis.effective_n import block_jackknife, block_refits
 from workbench.analysis.mag_attitude import down_direction
 from workbench.analysis.mag_fit import MagFit
 from workbench.errors import AnalysisError
@@ -145,36 +147,37 @@ def holdout_quality(fitter: Fitter, fit: MagFit, mag: np.ndarray, accel: np.ndar
 
 
 
-GROUPS = ("hard iron", "soft iron", "field norm")
+JACKKNIFE_BLOCKS = 5  # contiguous blocks in time of the delete-a-block jackknife (see jackknife_sigmas)
 
 
-def _coefficients(fit: MagFit) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """Per group of :data:`GROUPS`: the fit's coefficients (µT or dimensionless) and their sigmas."""
-    return {"hard iron": (fit.bias, fit.bias_sigma), "soft iron": (fit.soft_iron.ravel(), fit.soft_iron_sigma.ravel()),
-            "field norm": (np.array([fit.field_norm_ut]), np.array([fit.field_norm_sigma]))}
+def _vector(bias, soft_iron, field_norm, dip, alignment) -> np.ndarray:
+    """Hard iron (3) µT, soft iron (9), field norm µT, dip rad, alignment (3) rad as one vector (NaN for None)."""
+    def opt(x, size):
+        return np.full(size, np.nan) if x is None else np.atleast_1d(np.asarray(x, float))
+    return np.concatenate([bias, np.ravel(soft_iron), [field_norm], opt(dip, 1), opt(alignment, 3)])
 
 
-def split_half_scale(a: MagFit, b: MagFit) -> dict[str, tuple[float, float]]:
-    """Per group of :data:`GROUPS`: (scale, rms z) from the fits of the two halves of a record, with
-    ``z = (c_a - c_b) / sqrt(s_a^2 + s_b^2)`` over the coefficients both observe and ``scale = max(1, rms z)``:
-    what the full fit's sigmas of that group need for the halves to agree (a correct model and white
-    residuals give rms z ~ 1 and leave them alone)."""
-    out = {}
-    for g, ((ca, sa), (cb, sb)) in zip(GROUPS, zip(_coefficients(a).values(), _coefficients(b).values())):
-        ok = np.isfinite(sa) & np.isfinite(sb) & (np.hypot(sa, sb) > 0)
-        if ok.any():
-            rms = float(np.sqrt(np.mean(((ca - cb)[ok] / np.hypot(sa, sb)[ok]) ** 2)))
-            out[g] = (max(1.0, rms), rms)
-    return out
+def _outputs(fit: MagFit) -> np.ndarray:
+    """The fit's coefficients that carry a sigma, as :func:`_vector`."""
+    return _vector(fit.bias, fit.soft_iron, fit.field_norm_ut, fit.dip, fit.alignment)
 
 
-def scaled_sigmas(fit: MagFit, k: dict[str, float]) -> MagFit:
-    """``fit`` with the sigmas of each group of :data:`GROUPS` multiplied by ``k[group]`` (1 if absent); dip,
-    declination and alignment take the soft iron's."""
-    ks = k.get("soft iron", 1.0)
-
-    def mul(x):
-        return None if x is None else x * ks
-    return replace(fit, bias_sigma=fit.bias_sigma * k.get("hard iron", 1.0), soft_iron_sigma=fit.soft_iron_sigma * ks,
-                   field_norm_sigma=fit.field_norm_sigma * k.get("field norm", 1.0), dip_sigma=mul(fit.dip_sigma),
-                   declination_sigma=mul(fit.declination_sigma), alignment_sigma=mul(fit.alignment_sigma))
+def jackknife_sigmas(fitter: Fitter, fit: MagFit, n: int, blocks: int = JACKKNIFE_BLOCKS) -> MagFit:
+    """``fit`` with sigmas from the structure of the record along time: refitted by ``fitter`` without each of
+    ``blocks`` contiguous blocks of the ``n`` points (:func:`workbench.analysis.effective_n.block_jackknife`),
+    each sigma becomes the largest of the noise model's, the jackknife's ``sigma_J`` and how much the
+    coefficient moves from one block to the next beyond the noise ``sigma_B`` (the uncertainty of its value at
+    any time of the record; not added to ``sigma_J``, which holds part of the same spread). A
+    hand-held record's misfit depends on where the hand took the unit, one stretch of orientations after
+    another, and a board's hard iron may move along it: the refits show both, the residuals' correlation
+    alone does not. NaN sigmas (not observed) stay NaN; a refit that fails leaves the sigmas as they are."""
+    sigma = _vector(fit.bias_sigma, fit.soft_iron_sigma, fit.field_norm_sigma, fit.dip_sigma, fit.alignment_sigma)
+    try:
+        refits = block_refits(lambda keep: _outputs(fitter(keep)), n, blocks)
+    except AnalysisError:
+        return fit
+    jk, between = block_jackknife(_outputs(fit), refits, np.nan_to_num(sigma))
+    new = np.where(np.isfinite(sigma) & np.isfinite(jk), np.fmax(np.fmax(sigma, jk), between), sigma)
+    return replace(fit, bias_sigma=new[:3], soft_iron_sigma=new[3:12].reshape(3, 3), field_norm_sigma=float(new[12]),
+                   dip_sigma=None if fit.dip_sigma is None else float(new[13]),
+                   alignment_sigma=None if fit.alignment_sigma is None else new[14:17])
