@@ -14,8 +14,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
-import re
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -25,54 +23,22 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from sqlalchemy import create_engine, event, func, insert, inspect, select, update
+from sqlalchemy import create_engine, event, func, insert, inspect, select, text, update
 from sqlalchemy.engine import Connection, Engine
 from sqlalchemy.exc import IntegrityError, OperationalError, SQLAlchemyError
 
 from workbench.errors import StoreError
+from workbench.store_read import (DEFAULT_URL, SetInfo, default_url, list_sets_sql, redact,  # noqa: F401 (re-exported)
+                                  redact_url, set_infos)
 from workbench.store_schema import (APPROVALS, HEAD_REVISION, METADATA, MIGRATIONS, RESULTS,  # noqa: F401 (re-exported)
                                     SESSIONS, SETS, UNITS, VERSION_TABLE, schema_revision, upgrade)
 
 if TYPE_CHECKING:  # the calibration-set format (numpy, jsonschema) loads when a set is read
     from workbench.calset import CalibrationSet
 
-DEFAULT_URL = "sqlite:///workbench.db"
-
-
-def default_url() -> str:
-    """The store URL: ``WORKBENCH_DB`` if set, else SQLite ``./workbench.db``."""
-    return os.environ.get("WORKBENCH_DB") or DEFAULT_URL
-
-
-_PASSWORD = re.compile(r"^(?P<head>[^:/?#]+://[^:@/?#]*):(?P<password>[^@/?#]*)@")
-
-
-def redact_url(url: str) -> str:
-    """``url`` with its password (``scheme://user:PASSWORD@host``) replaced by ``***``, for output."""
-    return _PASSWORD.sub(r"\g<head>:***@", url, count=1)
-
-
-def redact(text: str, url: str) -> str:
-    """``text`` (e.g. a database driver's message) with ``url``'s password replaced by ``***``."""
-    m = _PASSWORD.match(url)
-    return text.replace(m["password"], "***") if m and m["password"] else text
-
 
 class StoreConflict(StoreError):
     """A transaction rolled back because another writer took the same key (e.g. a set version)."""
-
-
-@dataclass(frozen=True)
-class SetInfo:
-    """One line of a set listing."""
-
-    id: str
-    serial: str
-    model: str
-    version: int
-    created: str
-    procedures: tuple[str, ...]
-    approved_by: str | None
 
 
 @dataclass(frozen=True)
@@ -263,17 +229,10 @@ class Store:
         return None if row is None else _set_from_row(row.id, row.body)
 
     def list_sets(self, serial: str | None = None) -> list[SetInfo]:
-        """Stored sets (all, or one unit's history), newest first."""
+        """Stored sets (all, or one unit's history), newest first (the query of :mod:`workbench.store_read`)."""
         with self.transaction() as db:
-            q = (select(SETS.c.id, SETS.c.serial, UNITS.c.model, SETS.c.version, SETS.c.created, SETS.c.procedures,
-                        APPROVALS.c.approved_by)
-                 .join(UNITS, UNITS.c.serial == SETS.c.serial)
-                 .outerjoin(APPROVALS, APPROVALS.c.set_id == SETS.c.id))
-            if serial is not None:
-                q = q.where(SETS.c.serial == serial)
-            rows = db.execute(q.order_by(SETS.c.created.desc(), SETS.c.version.desc())).all()
-        return [SetInfo(r.id, r.serial, r.model, r.version, r.created,
-                        tuple(p for p in r.procedures.split(",") if p), r.approved_by) for r in rows]
+            rows = db.execute(text(list_sets_sql(serial)), {"serial": serial} if serial is not None else {}).all()
+        return set_infos(rows)
 
     def history(self, serial: str) -> list[SetInfo]:
         """All versions of one unit's calibration, newest first."""

@@ -18,9 +18,7 @@ from sqlalchemy import (Boolean, Column, ForeignKey, Integer, MetaData, String, 
 from sqlalchemy.engine import Engine
 
 from workbench.errors import StoreError
-
-HEAD_REVISION = "0001"  # the Alembic revision this version of the code expects
-VERSION_TABLE = "alembic_version"  # where Alembic keeps the schema revision
+from workbench.store_read import HEAD_REVISION, VERSION_TABLE  # noqa: F401 - the revision, read without SQLAlchemy too
 MIGRATIONS = Path(__file__).resolve().parent / "migrations"
 
 METADATA = MetaData()

@@ -34,10 +34,9 @@ def load_set_ref(ref: str) -> CalibrationSet:
 def list_sets(unit: str = typer.Option(None, "--unit", help="Only this unit serial."),
               format: str = typer.Option("table", "--format", help="table | json")) -> None:
     """List stored calibration sets, newest first."""
-    from workbench.store import Store
+    from workbench.store_read import list_sets
 
-    store = Store()
-    infos = store.list_sets(unit)
+    url, infos = list_sets(unit)  # a SQLite store is read without loading SQLAlchemy
     if format == "json":
         out.print_json(json.dumps([{"id": i.id, "serial": i.serial, "model": i.model, "version": i.version,
                                     "created": i.created, "procedures": list(i.procedures),
@@ -46,7 +45,7 @@ def list_sets(unit: str = typer.Option(None, "--unit", help="Only this unit seri
     if format != "table":
         raise typer.BadParameter(f"--format {format!r}: expected table or json")
     if not infos:
-        out.print(f"no calibration sets {'' if unit is None else f'of unit {unit} '}in {store.url}")
+        out.print(f"no calibration sets {'' if unit is None else f'of unit {unit} '}in {url}")
     for i in infos:
         unit = f"{i.serial} ({i.model})" if i.model and i.model not in i.serial else i.serial
         out.print(styled(i.id[:8], "bold", f"  {unit}  v{i.version}  {i.created[:16].replace('T', ' ')} UTC  "
