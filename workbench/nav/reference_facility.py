@@ -4,8 +4,9 @@ Paper 003 (shared/seeds/003_...) builds an airborne reference facility from an I
 differential GPS (debiased pseudoranges, "PPR") and a multi-antenna GPS attitude, fused by a
 9-state error EKF. Before flying, its accuracy is predicted by propagating the covariance only
 (eq. 15): this module does that for any IMU, from its calibration set's noise block or a grade,
-and answers whether the unit meets the facility's requirement (cm-level position, attitude
-better than 0.15°, paper 003 sec. 1).
+and answers whether the unit meets the facility's requirement (cm-level position, read as below a
+decimetre, and attitude better than 0.15°, paper 003 sec. 1; :class:`Requirement`) and improves on
+the aiding alone (sec. 4).
 
 - :func:`antenna_attitude_sigma`: the multi-antenna attitude budget (eq. 7-10): two orthogonal
   baselines of length ``L`` along body x and y, NED baseline errors ``sigma_h`` (north, east) and
@@ -32,7 +33,7 @@ better than 0.15°, paper 003 sec. 1).
 
 Public: :class:`ImuErrors`, :class:`Aiding`, :class:`Scenario`, :data:`SCENARIOS`,
 :class:`Budget`, :class:`Requirement`, :func:`antenna_attitude_sigma`, :func:`covariance_analysis`,
-:func:`meets`, :func:`time_to_requirement`.
+:func:`meets`, :func:`time_to_requirement`, :func:`aiding_alone`, :func:`adds_value`.
 
 References: paper 003 eq. 7-18, tables 1-3, Fig. 4, 6-8; Van Loan, "Computing integrals involving
 the matrix exponential", IEEE TAC 23 (1978).
@@ -310,10 +311,38 @@ def covariance_analysis(imu: ImuErrors, scenario: Scenario, aiding: Aiding = Aid
 
 @dataclass(frozen=True)
 class Requirement:
-    """The facility's requirement (paper 003 sec. 1): 1-sigma per axis, position m, attitude rad."""
+    """The facility's requirement (paper 003 sec. 1): 1-sigma per axis, position m, attitude rad.
 
-    position_m: float = 0.05
+    The paper asks for "cm-level positioning accuracy and attitude estimation error better than
+    0.15°" (sec. 1, heading included, sec. 6) and calls its 3 cm pseudoranges "cm-scale" and its
+    < 2 cm static variations "cm level": an error of some centimetres, i.e. below a decimetre,
+    which is the default here. Its own covariance analysis "matches the requirements" with its
+    IMU, whose height (set by VDOP 3.8 x 3 cm = 11.4 cm per fix, smoothed by the INS) comes out
+    at ~5 cm: a stricter reading (5 cm) would contradict the paper's own conclusion.
+    """
+
+    position_m: float = 0.10
     attitude_rad: float = float(np.radians(0.15))
+
+
+def aiding_alone(aiding: Aiding = Aiding()) -> tuple[np.ndarray, np.ndarray]:
+    """1-sigma of the aiding without the IMU: position fix N, E, D (m) and antenna attitude N, E, D (rad).
+
+    The paper's added-value check (sec. 4: the fused height and attitude errors "are lower than
+    those achievable by individual measurements"): :func:`adds_value` compares a budget with these.
+    """
+    return np.sqrt(np.diag(aiding.position_covariance())), np.array([aiding.tilt_sigma, aiding.tilt_sigma,
+                                                                      aiding.yaw_sigma])
+
+
+def adds_value(budget: Budget, aiding: Aiding = Aiding()) -> tuple[bool, bool]:
+    """(height, attitude): the saw-tooth's tops over the second half below the aiding alone (every attitude axis).
+
+    The height and the attitude as in the paper's claim: the horizontal fix (HDOP 1.25 x 3 cm / sqrt(2)
+    = 2.6 cm) is as good as the INS just before the next one, so the horizontal tops sit at it.
+    """
+    w, (pos, att) = budget.worst(), aiding_alone(aiding)
+    return bool(w["position_m"][2] < pos[2]), bool(np.all(w["attitude_rad"] < att))
 
 
 def time_to_requirement(budget: Budget, req: Requirement = Requirement()) -> tuple[float | None, float | None]:
