@@ -140,3 +140,12 @@ def test_adev_floor_variants_read_the_seed_bias_instability_as_the_floor(name, s
         np.testing.assert_array_equal(v.bias, b.bias)
     assert "read as the Allan-deviation floor" in " ".join(var.notes.split())
     assert "taken as the IEEE 952 coefficient B" in " ".join(base.notes.split())
+
+
+def test_every_grade_says_how_it_reads_the_bias_instability():
+    # issue 19: the figure is the IEEE 952 B or the Allan-deviation floor 0.664 B; each fixture says which
+    for name in grade_names():
+        notes = " ".join(load_spec(name).notes.split())
+        assert "Bias-instability reading:" in notes, name
+        reading = notes.split("Bias-instability reading:")[1]
+        assert ("IEEE 952" in reading) != name.endswith("_adev_floor"), name
