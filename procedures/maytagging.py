@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from procedures import _northfinding
+from workbench.analysis.northfinding_fit import PAIRINGS
 from workbench.analysis.northfinding_theory import adev_model, pair_azimuth_sigma
 from workbench.errors import RigLimitError
 from workbench.options import Option, check_options, defaults
@@ -35,6 +36,8 @@ OPTIONS = (
     _northfinding.MOUNT,
     _northfinding.settle_option(2.0),
     _northfinding.DISCARD,
+    Option("pairs", "analysis", "str", "disjoint", "disjoint: pairs (1, 2), (3, 4), ... (independent); sliding: "
+           "(1, 2), (2, 3), ..., an azimuth every dwell (thesis sec. 4.4.2, ABAB only)", choices=PAIRINGS),
     *_northfinding.ANALYSIS_OPTIONS,
 )
 DEFAULTS = defaults(OPTIONS)

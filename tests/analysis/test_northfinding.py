@@ -200,6 +200,28 @@ def test_abba_ordering_cancels_a_linear_drift():
     assert abs(errs["ABBA"]) < 0.01 * abs(errs["ABAB"])  # what is left is second order (atan2 curvature)
 
 
+def test_sliding_pairs_an_azimuth_every_dwell():
+    """Thesis sec. 4.4.2: 80 azimuths from 40 ABAB pairs, (A1,B1), (B1,A2), ...: the per-pair sigma of
+    the disjoint pairs, a linear drift alternating in sign (cancelled in the mean), 1-sigma from rows // 2."""
+    runs = [nfm.find_north(synth_session(maytag_angles(40), fs=4.0, seed=seed), "maytagging", grade=CVG,
+                           pairs="sliding") for seed in range(10)]
+    assert all(len(r.unit_azimuth) == 79 for r in runs)
+    dev = np.concatenate([nfm.angle_diff(r.unit_azimuth, r.true_azimuth) for r in runs])
+    # 790 azimuths, neighbours correlated 0.5 (a shared dwell): ~400 independent, std known to ~3.5 %; 15 %
+    assert np.std(dev) == pytest.approx(runs[0].theory["arw_unit_sigma"], rel=0.15)
+    for r in runs:  # 40 independent pairs, not 79
+        assert r.azimuth_sigma == pytest.approx(np.std(nfm.angle_diff(r.unit_azimuth, r.azimuth), ddof=1) / np.sqrt(40))
+    drift = (4e-9, -2e-9, 0.0)  # ~2 mrad per disjoint pair, as the ABBA test
+    s = synth_session(maytag_angles(20), white=np.zeros(3), drift=drift)
+    disjoint, sliding = (nfm.find_north(s, "maytagging", pairs=p) for p in ("disjoint", "sliding"))
+    # 39 sliding pairs alternate +e, -e, ...: one e is left in the mean, 1/39 = 2.6 % of the disjoint error
+    assert abs(disjoint.azimuth_error) > 1 * MRAD
+    assert abs(sliding.azimuth_error) < 0.05 * abs(disjoint.azimuth_error)
+    assert np.std(sliding.unit_azimuth) == pytest.approx(abs(disjoint.azimuth_error), rel=0.05)
+    with pytest.raises(AnalysisError, match="pairs 'overlapping' is not one of disjoint, sliding"):
+        nfm.find_north(s, "maytagging", pairs="overlapping")
+
+
 # -- carousel and multi-position ----------------------------------------------------------
 
 def test_carousel_error_shrinks_with_laps_as_theory_says():

@@ -229,10 +229,11 @@ class _MethodFit:
     warnings: tuple[str, ...] = ()
 
 
-def _maytagging(session, obs, geom, lat, drift, where, index_tol, **_) -> _MethodFit:
-    """Pairs of static steps 180° apart, eq. 4.6 (eq. 4.3 with one level axis)."""
-    d = maytag(obs, geom, lat, index_tol, drift, where)
+def _maytagging(session, obs, geom, lat, drift, where, index_tol, pairs, **_) -> _MethodFit:
+    """Pairs of static steps 180° apart, eq. 4.6 (eq. 4.3 with one level axis), disjoint or sliding."""
+    d = maytag(obs, geom, lat, index_tol, drift, where, pairs)
     return _MethodFit(d.fit, "pair", d.pair_azimuth, d.pair_time, d.azimuth, d, d.ambiguous,
+                      azimuth_sigma=d.azimuth_sigma,
                       parts={"home_azimuth": float(d.azimuth + obs.angle[0])}, warnings=tuple(d.warnings))
 
 
@@ -287,10 +288,13 @@ _METHODS = {"maytagging": ("static", _maytagging), "multiposition": ("static", _
 def find_north(session: Session, method: str, settle_s: float = 2.0, drift: bool | None = None,
                index_tol_deg: float = 0.05, max_tilt_deg: float = 1.0, grade: SensorSpec | None = None,
                bias: np.ndarray | None = None, positions_per_turn: int | None = None,
-               bin_deg: float = 5.0, axes: Sequence[int] | None = None, discard_s: float = 0.0) -> NorthFinding:
+               bin_deg: float = 5.0, axes: Sequence[int] | None = None, discard_s: float = 0.0,
+               pairs: str = "disjoint") -> NorthFinding:
     """Find north from a session with ``method`` in :data:`METHODS`.
 
-    * ``maytagging``: static steps paired in time order, 180° apart within ``index_tol_deg``;
+    * ``maytagging``: static steps paired in time order, 180° apart within ``index_tol_deg``,
+      ``pairs`` ``"disjoint"`` ((0, 1), (2, 3), ...) or ``"sliding"`` ((0, 1), (1, 2), ...: thesis
+      sec. 4.4.2, an azimuth every dwell);
     * ``multiposition``: static steps evenly spread round the turn (Earth-rate sweep), one
       fit per turn of ``positions_per_turn`` (default: the distinct angles) and one of all;
     * ``carousel``: the ``carousel`` steps binned by ``bin_deg``, one fit per lap and one of all;
@@ -333,7 +337,7 @@ def find_north(session: Session, method: str, settle_s: float = 2.0, drift: bool
     geom = _session_mount(session, obs, max_tilt, axes)
     warnings = _accel_tilt_warning(session, obs.step, geom, max_tilt)
     m = _METHODS[method][1](session, obs, geom, lat, drift, where, index_tol=np.radians(index_tol_deg),
-                            positions_per_turn=positions_per_turn, bias=bias)
+                            positions_per_turn=positions_per_turn, bias=bias, pairs=pairs)
     fit, detail, ambiguous, units = m.fit, m.detail, m.ambiguous, m.units
     unit_az, unit_t, azimuth = m.unit_azimuth, m.unit_time, m.azimuth
     warnings += list(m.warnings)

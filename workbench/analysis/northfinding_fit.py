@@ -204,7 +204,8 @@ class MaytagResult:
     with two level axes, else eq. 4.3 with the candidate nearest the pairs' mean, see
     ``ambiguous``); ``pair_time`` (P,) s; ``pair_steps`` (P, 2) step indices;
     ``pair_amplitude`` (P,) rad/s horizontal Earth rate seen by the pair;
-    ``azimuth`` rad, circular mean of the pairs; ``azimuth_sigma`` rad, their std / sqrt(P);
+    ``azimuth`` rad, circular mean of the pairs; ``azimuth_sigma`` rad, their std / sqrt(independent
+    pairs) (P disjoint, rows // 2 sliding);
     ``pair_std`` rad, the std of the pairs about their mean; ``fit`` the harmonic fit of all
     positions (bias, amplitude, drift); ``ambiguous``: True for a one-axis result (eq. 4.3),
     whose azimuth may be mirrored (``-psi``).
@@ -222,29 +223,39 @@ class MaytagResult:
     warnings: tuple[str, ...] = field(default=())
 
 
+PAIRINGS = ("disjoint", "sliding")
+
+
 def maytag(obs: Observations, geom: AxisGeometry, latitude: float, index_tol: float, drift: bool = False,
-           where: str = "maytagging") -> MaytagResult:
+           where: str = "maytagging", pairs: str = "disjoint") -> MaytagResult:
     """Azimuth from consecutive position pairs 180° apart (eq. 4.6, or eq. 4.3 with one level axis).
 
-    Rows are paired in time order (0, 1), (2, 3), ...; each pair must be 180° apart by its
-    recorded angles within ``index_tol`` (rad), else AnalysisError naming the steps. The
-    pair's home angle is removed so every pair estimates the azimuth at the table's zero.
+    Rows are paired in time order: ``pairs="disjoint"`` (0, 1), (2, 3), ... (independent pairs);
+    ``"sliding"`` (0, 1), (1, 2), ... (an azimuth every dwell, as thesis sec. 4.4.2 takes 80 from
+    40 ABAB pairs; adjacent azimuths share a dwell, so the 1-sigma of the mean counts only the
+    ``rows // 2`` independent pairs). Each pair must be 180° apart by its recorded angles within
+    ``index_tol`` (rad), else AnalysisError naming the steps. The pair's first angle is removed so
+    every pair estimates the azimuth at the table's zero.
     """
     check_latitude(latitude, where)
+    if pairs not in PAIRINGS:
+        raise AnalysisError(f"{where}: pairs {pairs!r} is not one of {', '.join(PAIRINGS)}")
     order = np.argsort(obs.t)
     obs = obs.subset(order)
-    n_pairs = len(obs) // 2
-    if n_pairs < 1:
+    n_indep = len(obs) // 2
+    if n_indep < 1:
         raise AnalysisError(f"{where}: {len(obs)} static position(s); maytagging needs at least one pair")
     warnings = []
-    if len(obs) % 2:
+    if len(obs) % 2 and pairs == "disjoint":
         warnings.append(f"{where}: odd number of positions; the last (step {obs.step[-1]}) is not paired")
+    firsts = np.arange(n_indep) * 2 if pairs == "disjoint" else np.arange(len(obs) - 1)
+    n_pairs = len(firsts)
     hz = np.flatnonzero(geom.horizontal)
     two_axis = len(hz) >= 2
     ang = obs.angle
     pair_az, pair_amp, pair_t, pair_steps = [], [], [], []
-    for k in range(n_pairs):
-        i, j = 2 * k, 2 * k + 1
+    for i in firsts:
+        j = i + 1
         sep = abs(angle_diff(ang[j] - ang[i], np.pi))
         if sep > index_tol:
             raise AnalysisError(f"{where}: steps {obs.step[i]} -> {obs.step[j]}: the index is "
@@ -267,7 +278,7 @@ def maytag(obs: Observations, geom: AxisGeometry, latitude: float, index_tol: fl
         warnings.append(f"{where}: one level gyro axis: eq. 4.3 leaves a ±180° ambiguity (psi or -psi); "
                         "every pair is put on the first pair's branch")
         # each pair gives +-psi about its home angle; align all to the first pair's branch
-        home = ang[0:2 * n_pairs:2]
+        home = ang[firsts]
         cand = np.stack([pair_az, angle_diff(-(pair_az + home), home)])
         ref = cand[0, 0]
         pick = np.argmin(np.abs(angle_diff(cand, ref)), axis=0)
@@ -275,8 +286,9 @@ def maytag(obs: Observations, geom: AxisGeometry, latitude: float, index_tol: fl
     mean = circular_mean(pair_az)
     dev = angle_diff(pair_az, mean)
     std = float(np.std(dev, ddof=1)) if n_pairs > 1 else np.nan
-    fit = fit_harmonic(obs.subset(np.arange(2 * n_pairs)), geom, latitude, drift=drift and n_pairs > 1, where=where)
-    sigma = std / np.sqrt(n_pairs) if n_pairs >= 3 else fit.azimuth_sigma
+    used = np.arange(firsts[-1] + 2)
+    fit = fit_harmonic(obs.subset(used), geom, latitude, drift=drift and n_indep > 1, where=where)
+    sigma = std / np.sqrt(n_indep) if n_indep >= 3 else fit.azimuth_sigma
     return MaytagResult(pair_az, np.array(pair_t), np.array(pair_steps), np.array(pair_amp), mean, float(sigma), std,
                         fit, not two_axis, tuple(warnings))
 
