@@ -120,6 +120,13 @@ def import_folder(profile: Path, typed: str) -> Path:
     return _store_import(profile, folder, folder.name, {})
 
 
+def show_in_browse(dest: Path) -> None:
+    """Pick the session just imported into ``dest`` in the Browse tab's session box (drawn later in this run)."""
+    label = next((k for k, v in results.session_dirs().items() if Path(v) == Path(dest)), None)
+    if label is not None:
+        st.session_state["sess.pick"] = label
+
+
 st.title("Sessions")
 tab_browse, tab_import = st.tabs(["Browse and inspect", "Import a recording"])
 
@@ -168,13 +175,14 @@ with tab_import:
             else:
                 dest = import_folder(profile_path, typed)
             st.success(f"Imported into {dest}")
+            show_in_browse(dest)
         except Exception as exc:  # noqa: BLE001 - unreadable uploads raise many types; nothing was kept
             ui.show_error(exc, f"import of {what}")
 
 with tab_browse:
     folder = results.session_picker(key="sess.pick")
     if folder is None:
-        st.info("No sessions yet.")
+        st.info("Pick a session above, or type its folder." if results.session_dirs() else "No sessions yet.")
         st.stop()
     try:
         session = load(folder)

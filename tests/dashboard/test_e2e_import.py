@@ -66,6 +66,9 @@ def test_marg_recording_imported_through_the_sessions_page(server, browser_page_
     (row,) = Store(server["db"]).list_sessions()
     assert row.path == str(dest) and row.serial == reference.unit.serial and row.n_steps == 1
     b.act(lambda: page.get_by_role("tab", name="Browse and inspect").click())
+    # the Browse tab already shows the session just imported
+    assert page.get_by_text("No sessions yet.").count() == 0
+    assert page.locator("[data-testid='stMetricValue']").first.inner_text() == reference.unit.serial
     b.select("Session", f"{row.created} · {row.procedure} · {row.serial} · {row.id[:8]}")
     b.shot("30_sessions_marg_browse")
     metrics = dict(zip(page.locator("[data-testid='stMetricLabel']").all_inner_texts(),

@@ -336,6 +336,8 @@ def test_sessions_browse_steps_and_plots(stored_session):
     at.selectbox(key="sess.step").select("1: static x-up").run()
     assert not at.exception
     assert any("accel (body frame)" in c.value for c in at.caption)
+    at.selectbox(key="sess.pick").select("(type a folder)").run()
+    assert texts(at, "info") == ["Pick a session above, or type its folder."]  # sessions exist: not 'No sessions yet.'
 
 
 def test_sessions_bad_folder_is_readable(seeded_db, tmp_path):
@@ -353,6 +355,9 @@ def test_sessions_import_through_profile(seeded_db, tmp_path):
     (folder,) = _imports(tmp_path)
     sessions = seeded_db.list_sessions("IMP-7")
     assert len(sessions) == 1 and sessions[0].path == str(folder) and sessions[0].n_steps == 2
+    # the Browse tab shows the session just imported, without picking it
+    assert at.selectbox(key="sess.pick").value.endswith(sessions[0].id[:8])
+    assert at.metric[0].value == "IMP-7"
 
 
 def test_sessions_import_not_a_recording_keeps_nothing(seeded_db, tmp_path):
