@@ -1,4 +1,4 @@
-"""Honest sigmas on correlated data: effective sample size, model misfit, moving-block bootstrap.
+"""Honest sigmas on correlated data: effective sample size, model misfit, block jackknife.
 
 A least-squares or mean sigma from a white-noise formula (``s / sqrt(N)``) is too small when
 the residuals are correlated in time (bias instability, Gauss-Markov drift, a hand-held motion
@@ -12,13 +12,10 @@ factors correct it, each >= 1, and multiply the white-noise sigma:
   ``sqrt(4 M / N)``, of its white-noise spread).
 - :func:`misfit_scale` = ``sqrt(max(1, chi2 / dof))``: the reduced chi-square.
 
-:func:`sigma_scale` is both for a fit's residuals; :func:`honest_covariance` scales a least-squares
-covariance per parameter by the correlation time of its score series (a Newey-West sandwich in
-effective-sample-size form); :func:`mean_sigma` the honest sigma of the
-mean of a static record; :func:`tau_int_records` one correlation time from several records (the
-static steps of a session); :func:`moving_block_bootstrap` the distribution of any statistic by
-resampling blocks of consecutive samples (Kunsch 1989), a check that needs no model of the
-correlation; :func:`block_refits` and :func:`block_jackknife` the sigma of a fit's outputs from refits that
+:func:`honest_covariance` scales a least-squares covariance per parameter by the correlation time
+of its score series (a Newey-West sandwich in effective-sample-size form; for a mean, the honest
+sigma of the mean of a static record); :func:`tau_int_records` one correlation time from several
+records (the static steps of a session); :func:`block_refits` and :func:`block_jackknife` the sigma of a fit's outputs from refits that
 each leave out one of K contiguous blocks in time (delete-a-block jackknife, Kunsch 1989 sec. 2)
 and how much they move between blocks beyond the noise: they see what a stationary correlation
 model cannot, a model misfit or a coefficient that changes along the record (a hand-held record
@@ -26,7 +23,8 @@ visits its orientations one stretch after the other).
 
 References: A. Sokal, "Monte Carlo methods in statistical mechanics" (1996), sec. 3 (the
 automatic window); H. Kunsch, Ann. Statist. 17 (1989) 1217 (the moving-block bootstrap);
-IEEE Std 952 (the flicker floor that a record's own autocorrelation can only partly show).
+IEEE Std 952 (the flicker floor that a record's own autocorrelation can only partly show). The tests
+check :func:`tau_int` against a moving-block bootstrap (Kunsch 1989), which needs no model of the correlation.
 """
 
 from __future__ import annotations
@@ -118,49 +116,10 @@ def misfit_scale(chi2: float, dof: float) -> float:
     return float(np.sqrt(max(1.0, chi2 / dof)))
 
 
-def sigma_scale(residuals: np.ndarray, sigma, n_params: int) -> float:
-    """Misfit times correlation factor for a least-squares fit's white-noise sigmas.
-
-    ``residuals`` (N,) or (N, C) in time order, in the unit of ``sigma`` (the per-point noise the
-    fit used: scalar or broadcastable to ``residuals``); ``n_params`` fitted parameters.
-    The reduced chi-square is ``sum (r / sigma)^2 / (N C - n_params)``.
-    """
-    r = np.asarray(residuals, float)
-    chi2 = float(np.sum((r / np.broadcast_to(np.asarray(sigma, float), r.shape)) ** 2))
-    return misfit_scale(chi2, r.size - n_params) * float(ess_scale(r))
 
 
-def mean_sigma(x: np.ndarray) -> np.ndarray:
-    """Sigma (C,) of the column means of a static record ``x`` (N, C) in time order, in its unit.
-
-    ``std * sqrt(tau_int / N)`` per column (``tau_int`` per column: the axes of a triad differ);
-    the white-noise ``std / sqrt(N)`` when the samples are uncorrelated.
-    """
-    x = np.asarray(x, float)
-    x = x[:, None] if x.ndim == 1 else x
-    return x.std(axis=0, ddof=1) * np.sqrt(tau_int(x, pooled=False) / len(x))
 
 
-def moving_block_bootstrap(stat: Callable[[np.ndarray], np.ndarray], data: np.ndarray, block: int,
-                           n_boot: int = 200, seed: int = 0) -> np.ndarray:
-    """``stat`` of ``n_boot`` moving-block resamples of ``data`` (N, ...) in time order: (n_boot, ...).
-
-    Each resample joins ``ceil(N / block)`` blocks of ``block`` consecutive rows drawn with
-    replacement from the N - block + 1 possible starts, cut to N rows. Their spread (``std``
-    over axis 0) is the statistic's sigma when ``block`` spans the correlation time.
-    """
-    data = np.asarray(data)
-    n = len(data)
-    block = int(min(max(block, 1), n))
-    rng = np.random.default_rng(seed)
-    k = -(-n // block)
-    offsets = np.arange(block)
-    out = []
-    for _ in range(n_boot):
-        starts = rng.integers(0, n - block + 1, size=k)
-        idx = (starts[:, None] + offsets[None, :]).ravel()[:n]
-        out.append(np.asarray(stat(data[idx])))
-    return np.array(out)
 
 
 def block_refits(stat: Callable[[np.ndarray], np.ndarray], n: int, blocks: int) -> np.ndarray:

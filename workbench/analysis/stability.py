@@ -39,7 +39,6 @@ from workbench.errors import AnalysisError
 
 STATS = ("adev", "oadev", "mdev", "tdev", "hdev", "ohdev", "totdev", "mtotdev", "ttotdev", "htotdev",
          "theo1", "theoh", "mtie", "tierms")
-TAU_GRIDS = ("octave", "decade", "all")
 GAP_FREE = ("totdev", "mtotdev", "ttotdev", "htotdev", "theo1", "theoh", "mtie")
 # largest m as a fraction of the phase points: a statistic needs at least one full difference
 _SPAN = {"adev": 2, "oadev": 2, "mdev": 3, "tdev": 3, "hdev": 3, "ohdev": 3, "totdev": 1, "mtotdev": 3,
