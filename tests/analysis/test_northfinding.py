@@ -282,6 +282,9 @@ def test_redundant_eight_pairings_and_repeatability_table():
     assert len(table) == 8 and all(row["repeatability_mrad"] > 0 for row in table)
     # the max distance of 5 session means (10 estimates each) stays within ~3 sigma/sqrt(10)
     assert max(row["repeatability_mrad"] for row in table) < 3.5 * theory / np.sqrt(10) / MRAD
+    # the labels are the encoder's whole degrees: 314.996° and 359.996° read as 315° and 0°
+    s = synth_session([45.0 * k for k in range(16)], fs=4.0, seed=7, encoder_offsets_deg=[-0.004] * 16)
+    assert nfm.find_north(s, "redundant", positions_per_turn=8).detail.pairings == d.pairings
 
 
 # -- bad input ----------------------------------------------------------------------------

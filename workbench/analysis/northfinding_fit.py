@@ -350,8 +350,8 @@ def redundant(obs: Observations, geom: AxisGeometry, latitude: float, positions_
     az = np.zeros((n_turns, positions_per_turn))
     for k in range(positions_per_turn):
         k2 = (k + 1) % positions_per_turn
-        a0 = np.degrees(wrap_2pi(ang[0, k]))
-        labels.append(f"{a0:.0f}-{(a0 + np.degrees(step)) % 360:.0f}")
+        a0 = round(float(np.degrees(wrap_2pi(ang[0, k])))) % 360  # the encoder's degree: 314.996° is 315°
+        labels.append(f"{a0}-{(a0 + round(np.degrees(step))) % 360}")
         for t in range(n_turns):
             rows = np.array([t * positions_per_turn + k, t * positions_per_turn + k2])
             az[t, k] = fit_harmonic(obs.subset(rows), geom, latitude, bias=est, where=f"{where} turn {t}").azimuth
