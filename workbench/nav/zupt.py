@@ -33,7 +33,13 @@ Refinements over the thesis, for honest uncertainties:
 - the Jacobians are evaluated at the frozen solution (first-estimates Jacobians): evaluated at
   the corrected attitude they leak spurious information into the unobservable direction;
 - the external heading's own uncertainty cannot be reduced by the filter and is added to the
-  reported heading sigma.
+  reported heading sigma;
+- the zero angular rate update's noise is the mean of the gyro white noise over its window, which
+  the attitude (and through the tilt the velocity and position) has just integrated: its covariance
+  with the error state (:func:`_zarupt_cross`) enters the update, which otherwise counts the gyro
+  noise twice (once through the ZUPT-observed tilt, once in the ZARUPT) and makes the heading
+  sigma up to sqrt(2) small. The window is capped at the update interval, so that consecutive
+  ZARUPTs share no samples and the error state is correlated with the current one's noise only.
 
 Public: :class:`ZuptConfig`, :class:`ZuptResult`, :func:`align`.
 """
@@ -56,6 +62,11 @@ N_STATES = 15
 P, V, A, BA, BG = (slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), slice(12, 15))
 MEASUREMENTS = ("position", "velocity", "attitude", "heading", "zarupt")
 HEADING_SOURCES = ("external", "gyrocompass")
+# rad: 1-sigma initial heading above which the ZARUPT through turns is flagged. The error model is
+# linear in the heading error; at 8° its 3-sigma (24°) leaves sin/cos of the Earth-rate and bias
+# terms 3 % (psi^2 / 6) and 9 % (psi^2 / 2) off the linear model. Measured at ~15° (3 °/h gyro-bias
+# prior, gyrocompass): pitch and x accel bias errors 1.5-1.6x their sigma over 20 seeds.
+LINEAR_HEADING_SIGMA = np.radians(8.0)
 
 
 @dataclass(frozen=True)
@@ -65,7 +76,7 @@ class ZuptConfig:
     ``level_s`` coarse-levelling window; ``update_interval_s`` corrector period (thesis: 1 s);
     ``measurements`` any of ``position``, ``velocity``, ``attitude`` (all three angles held at
     the frozen solution, eq. 3.57), ``heading`` (heading only), ``zarupt`` (paper 001 eq. 35-40);
-    ``zarupt_window_s`` the moving-average length of eq. 40; ``gain_scaling`` with ``c0``, ``c1``
+    ``zarupt_window_s`` the moving-average length of eq. 40 (capped at ``update_interval_s``); ``gain_scaling`` with ``c0``, ``c1``
     (eq. 46-47; the paper's c1 = 6, but c0 = 3 rather than its 1: with c0 = 1 a third of
     consistent innovations lose gain and the bias estimates lag); pseudo-measurement 1-sigma
     noises; bias priors (1-sigma, per axis or scalar); ``heading_sigma`` the external heading's 1-sigma, rad;
@@ -124,6 +135,7 @@ class ZuptResult:
     until the table turns, see :attr:`tilt_observed`); ``weights``
     (E, m) the gain scale factors of eq. 47; ``attitude`` the body-to-NED Rotation (E,);
     ``initial_rph`` the frozen roll, pitch, heading; ``t_start`` the EKF start time, s;
+    ``initial_heading_sigma`` rad the 1-sigma of the heading the filter starts from;
     ``drift_noise`` (m/s, rad) the 1-sigma norms of the velocity and attitude that white
     accelerometer and gyro noise alone accumulate over one interval.
     """
@@ -146,6 +158,7 @@ class ZuptResult:
     measurements: tuple[str, ...]
     drift_noise: tuple[float, float]
     level_sigma: np.ndarray
+    initial_heading_sigma: float
 
     @property
     def tilt_observed(self) -> bool:
@@ -156,12 +169,19 @@ class ZuptResult:
     @property
     def warnings(self) -> tuple[str, ...]:
         """One-line notes of the run (the result protocol's ``warnings``)."""
-        if self.tilt_observed:
-            return ()
-        tilt, level = (np.degrees(self.attitude_sigma[-1, :2]).max(), np.degrees(self.level_sigma).max())
-        return (f"roll/pitch not observed apart from the horizontal accelerometer bias (the unit does not turn): "
-                f"their 1-sigma {tilt:.2g}° is that bias's prior / g; the level against the accelerometers is "
-                f"known to {level:.2g}°",)
+        notes = []
+        if not self.tilt_observed:
+            tilt, level = (np.degrees(self.attitude_sigma[-1, :2]).max(), np.degrees(self.level_sigma).max())
+            notes.append(f"roll/pitch not observed apart from the horizontal accelerometer bias (the unit does not "
+                         f"turn): their 1-sigma {tilt:.2g}° is that bias's prior / g; the level against the "
+                         f"accelerometers is known to {level:.2g}°")
+        turning = bool(np.isnan(self.drift_attitude).any())
+        if turning and "zarupt" in self.measurements and self.initial_heading_sigma > LINEAR_HEADING_SIGMA:
+            notes.append(f"ZARUPT through turns from an initial heading 1-sigma of "
+                         f"{np.degrees(self.initial_heading_sigma):.1f}° (> {np.degrees(LINEAR_HEADING_SIGMA):.0f}°): "
+                         f"the linearised error model does not hold there and the tilt / accel-bias sigmas may be "
+                         f"optimistic; give a heading or a calibrated gyro bias")
+        return tuple(notes)
 
     def to_dict(self) -> dict:
         """The end state, JSON-ready, SI (:func:`workbench.nav.nav_results.zupt_dict`)."""
@@ -205,6 +225,25 @@ def _continuous_model(c: np.ndarray, f_n: np.ndarray, w_ie: np.ndarray, noise: P
     Q[BA, BA] = np.diag(noise.accel_bias_rw ** 2)
     Q[BG, BG] = np.diag(noise.gyro_bias_rw ** 2)
     return F, Q
+
+
+def _zarupt_cross(c: np.ndarray, f_n: np.ndarray, gyro_white: np.ndarray, window_s: float) -> np.ndarray:
+    """``E[dx vᵀ]`` (15, 3): covariance of the error state at a correction with the ZARUPT's noise ``v``.
+
+    The ZARUPT (rows ``H = [.., -Cᵀ[w_ie×], .., -I]``) sees ``v = -n̄``, the mean of the body gyro white
+    noise ``n`` (density ``gyro_white`` (3,) rad/√s) over the ``window_s`` s before the correction. The
+    same samples drove the attitude error, ``dθ̇ = -C n`` (``c`` body-to-NED over the window), and
+    through the tilt the velocity, ``dv̇ = -[f_n×] dθ`` (``f_n`` NED specific force, m/s²), and the
+    position. With ``q = C diag(gyro_white²)``: ``E[dθ vᵀ] = q``, ``E[dv vᵀ] = -[f_n×] q window_s / 2``,
+    ``E[dp vᵀ] = -[f_n×] q window_s² / 6``; the Coriolis and Earth-rate terms of F change these by
+    ``~|w_ie| window_s`` (1e-4 for 1 s), left out.
+    """
+    q = c @ np.diag(np.asarray(gyro_white, float) ** 2)
+    m = np.zeros((N_STATES, 3))
+    m[A] = q
+    m[V] = -skew(f_n) @ q * (window_s / 2.0)
+    m[P] = -skew(f_n) @ q * (window_s ** 2 / 6.0)
+    return m
 
 
 def gyrocompass(rate_level: np.ndarray, latitude: float) -> float:
@@ -293,6 +332,7 @@ def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: fl
     if rotating and not compass:
         Pm[8, 8] += config.heading_sigma ** 2
     f_n = np.array([0.0, 0.0, -g_meas])
+    heading_sigma0 = float(np.hypot(np.sqrt(Pm[8, 8]), heading_extra))
     phi, qd = van_loan(*_continuous_model(ci, f_n, w_ie, noise), n_blk * dt)
     prop = BlockPropagator(n_blk, dt, w_ie)
     c = ci
@@ -301,7 +341,7 @@ def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: fl
     ts = np.arange(1, n_blk + 1) * dt
     e_cor = Rotation.from_rotvec(-2.0 * np.outer(ts, w_ie))  # Coriolis solution E(t) = Exp(-2 w_ie t)
     e_cor_inv = e_cor.inv()
-    n_avg = max(1, int(round(config.zarupt_window_s / dt)))
+    n_avg = min(n_blk, max(1, int(round(config.zarupt_window_s / dt))))  # no sample in two ZARUPTs
     use = config.measurements
     rejected = {}  # consecutive rejections per measurement (rows)
     widths = {"position": 3, "velocity": 3, "attitude": 3 if "attitude" in use else 1, "zarupt": 3}
@@ -331,17 +371,19 @@ def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: fl
             phi, qd = van_loan(*_continuous_model(c_lin, f_n, w_ie, noise), n_blk * dt)
         Pm = phi @ Pm @ phi.T + qd
         # -- corrector (eq. 3.57-3.60, paper 001 eq. 35-40, 46-47) -------------------------------
-        rows, z, r, names = [], [], [], []
+        rows, z, r, names, cross = [], [], [], [], []
         if "position" in use:
             rows.append(np.hstack([np.eye(3), np.zeros((3, 12))]))
             z.append(-pos)
             r.append(np.full(3, config.position_sigma_m ** 2))
             names.append("position")
+            cross.append(np.zeros((N_STATES, 3)))
         if "velocity" in use:
             rows.append(np.hstack([np.zeros((3, 3)), np.eye(3), np.zeros((3, 9))]))
             z.append(-vel)
             r.append(np.full(3, config.velocity_sigma_mps ** 2))
             names.append("velocity")
+            cross.append(np.zeros((N_STATES, 3)))
         if "attitude" in use or "heading" in use:
             h = np.zeros((3, N_STATES))
             h[:, A] = np.eye(3)
@@ -352,21 +394,24 @@ def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: fl
             z.append(za[sel])
             r.append(np.full(len(sel), config.attitude_sigma_rad ** 2))
             names.append("attitude")
-        w_window = samples.gyro[max(0, i0 + n_blk - n_avg):i0 + n_blk]
-        if "zarupt" in use and np.all(still[max(0, i0 + n_blk - n_avg):i0 + n_blk]):
+            cross.append(np.zeros((N_STATES, len(sel))))
+        w_window = samples.gyro[i0 + n_blk - n_avg:i0 + n_blk]
+        if "zarupt" in use and np.all(still[i0 + n_blk - n_avg:i0 + n_blk]):
             w_avg = np.mean(w_window - bg, axis=0)
             h = np.zeros((3, N_STATES))
             h[:, A] = -c_lin.T @ skew(w_ie)
             h[:, BG] = -np.eye(3)
             rows.append(h)
             z.append(-(w_avg - c.T @ w_ie))  # body-frame form of eq. 38: R diagonal
-            r.append(noise.gyro_white ** 2 / (len(w_window) * dt))
+            r.append(noise.gyro_white ** 2 / (n_avg * dt))
             names.append("zarupt")
+            cross.append(_zarupt_cross(c_lin, f_n, noise.gyro_white, n_avg * dt))
         H, zv, rv = np.vstack(rows), np.concatenate(z), np.concatenate(r)
+        cv = np.hstack(cross) if "zarupt" in names else None
         unscaled = np.concatenate([rejected.get(nm, np.zeros(len(zz), int)) >= config.max_rejections
                                    for nm, zz in zip(names, z)])
         Pm, dx, w_rows = sequential_update(Pm, H, zv, rv, (config.c0, config.c1) if config.gain_scaling else None,
-                                           unscaled)
+                                           unscaled, cv)
         weights = np.full(n_meas, np.nan)
         k_row = 0
         for nm, zz in zip(names, z):
@@ -401,4 +446,4 @@ def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: fl
                       np.array([roll0, pitch0, heading]), float(samples.t[n_level]), tuple(use),
                       (float(np.linalg.norm(noise.accel_white) * np.sqrt(n_blk * dt)),
                        float(np.linalg.norm(noise.gyro_white) * np.sqrt(n_blk * dt))),
-                      np.sqrt(np.diag(h_level @ Pm @ h_level.T)))
+                      np.sqrt(np.diag(h_level @ Pm @ h_level.T)), heading_sigma0)
