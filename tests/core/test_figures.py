@@ -1,4 +1,4 @@
-"""Figures: drawn once at their own size (constrained layout, no re-fit on save), or not at all."""
+"""Figures: drawn once at their own size (margins fitted once as drawn, no re-fit on save), or not at all."""
 
 from __future__ import annotations
 

@@ -19,13 +19,14 @@ import numpy as np  # noqa: E402
 from workbench import units  # noqa: E402
 from workbench.analysis.allan_fit import TERMS, AllanAnalysis, basis  # noqa: E402
 from workbench.analysis.allan_terms import term_text  # noqa: E402
+from workbench.plots.layout import FittedMargins  # noqa: E402
 
 # display unit of the ADEV axis and of each term, per quantity (None = SI of the input)
 DEV_UNIT = {"gyro": "deg/h", "accel": "ug", None: "1"}
 def plot_triads(analyses: Mapping[str, AllanAnalysis]) -> plt.Figure:
     """One log-log panel per triad (``{"gyro": ..., "accel": ...}``)."""
     fig, axes = plt.subplots(1, len(analyses), figsize=(6.2 * len(analyses), 4.8), squeeze=False,
-                             layout="constrained")
+                             layout=FittedMargins())
     for ax, (name, an) in zip(axes[0], analyses.items()):
         plot_panel(an, ax, title=name)
     return fig

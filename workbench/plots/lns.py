@@ -13,9 +13,11 @@ def lns_figures(payload: dict) -> dict:
     since the GPS loss, Fig. 2.17/2.20), ``odo_scale`` (the odometer scale-factor estimate, Fig. 2.18)."""
     from matplotlib.figure import Figure
 
+    from workbench.plots.layout import FittedMargins
+
     runs, gps, t_loss = payload["runs"], payload["gps"], payload["t_loss"]
     figs = {}
-    fig = Figure(figsize=(7, 6))
+    fig = Figure(figsize=(7, 6), layout=FittedMargins())
     ax = fig.add_subplot()
     lat0, lon0 = gps["lat"][0], gps["lon"][0]
     r_e = 6.371e6
@@ -33,7 +35,7 @@ def lns_figures(payload: dict) -> dict:
     ax.set_aspect("equal")
     ax.legend(fontsize=7)
     figs["trajectory"] = fig
-    fig = Figure(figsize=(7, 4))
+    fig = Figure(figsize=(7, 4), layout=FittedMargins())
     ax = fig.add_subplot()
     for name, r in runs.items():
         d = np.asarray(r["distance_m"])
@@ -45,7 +47,7 @@ def lns_figures(payload: dict) -> dict:
            title="Error after the GPS loss (thesis Fig. 2.17 / 2.20)")
     ax.legend(fontsize=7)
     figs["error_pct"] = fig
-    fig = Figure(figsize=(7, 3.5))
+    fig = Figure(figsize=(7, 3.5), layout=FittedMargins())
     ax = fig.add_subplot()
     for name, r in runs.items():
         if name.endswith("/sf_state"):
@@ -62,7 +64,9 @@ def land_ins_figures(payload: dict) -> dict:
     calibrated (paper 001 Fig. 4-4 style)."""
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(7, 4))
+    from workbench.plots.layout import FittedMargins
+
+    fig = Figure(figsize=(7, 4), layout=FittedMargins())
     ax = fig.add_subplot()
     for mode, r in payload["runs"].items():
         if "error_m" in r:

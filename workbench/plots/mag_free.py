@@ -11,11 +11,12 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from workbench.analysis.mag_holdout import FreeQuality
+from workbench.plots.layout import FittedMargins
 
 
 def plot_free_quality(q: FreeQuality) -> plt.Figure:
     """Two panels against time (s): field norm deviation (%) and field-to-gravity angle (°)."""
-    fig, (ax_n, ax_a) = plt.subplots(2, 1, figsize=(9, 6), sharex=True, layout="constrained")
+    fig, (ax_n, ax_a) = plt.subplots(2, 1, figsize=(9, 6), sharex=True, layout=FittedMargins())
     s = q.series or {}
     if "t" not in s:
         ax_n.text(0.5, 0.5, "no per-point figures stored", ha="center", transform=ax_n.transAxes)

@@ -17,6 +17,7 @@ import numpy as np  # noqa: E402
 
 from workbench.analysis.magnetometer import MagCalibration  # noqa: E402
 from workbench.angles import wrap_2pi  # noqa: E402
+from workbench.plots.layout import FittedMargins  # noqa: E402
 
 _PLANES = ((0, 1), (0, 2), (1, 2))
 _AXES = "xyz"
@@ -26,7 +27,7 @@ def plot_cloud(cal: MagCalibration) -> plt.Figure:
     """Raw vs calibrated magnetometer points (µT) in the xy, xz and yz planes."""
     raw = cal.points.mag
     calibrated = cal.fit.compensate(raw)
-    fig, axes = plt.subplots(1, 3, figsize=(13, 4.4), layout="constrained")
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4.4), layout=FittedMargins())
     circle = np.linspace(0, 2 * np.pi, 361)
     r = cal.fit.field_norm_ut
     for ax, (i, j) in zip(axes, _PLANES):
@@ -45,7 +46,7 @@ def plot_cloud(cal: MagCalibration) -> plt.Figure:
 
 def plot_heading_error(cal: MagCalibration) -> plt.Figure:
     """Heading error (°) against the table azimuth (°): raw, plain algebraic fit, chosen fit."""
-    fig, ax = plt.subplots(figsize=(9, 4.5), layout="constrained")
+    fig, ax = plt.subplots(figsize=(9, 4.5), layout=FittedMargins())
     if cal.heading is None:
         ax.text(0.5, 0.5, "no attitude: heading error not evaluated", ha="center", transform=ax.transAxes)
         return fig

@@ -17,12 +17,13 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from workbench import units  # noqa: E402
+from workbench.plots.layout import FittedMargins  # noqa: E402
 
 _STYLE = {"raw": {"color": "tab:red", "alpha": 0.8}, "calibrated": {"color": "tab:blue"}}
 
 
 def _axes3(title: str, ylabel: str, names=("x", "y", "z")):
-    fig, axes = plt.subplots(3, 1, figsize=(8, 7), sharex=True, layout="constrained")
+    fig, axes = plt.subplots(3, 1, figsize=(8, 7), sharex=True, layout=FittedMargins())
     fig.suptitle(title)
     for ax, n in zip(axes, names):
         ax.set_ylabel(f"{n} [{ylabel}]")

@@ -21,12 +21,13 @@ import numpy as np  # noqa: E402
 
 from workbench.analysis.northfinding import NorthFinding, RedundantResult, angle_diff  # noqa: E402
 from workbench.angles import wrap_2pi  # noqa: E402
+from workbench.plots.layout import FittedMargins  # noqa: E402
 from workbench.units import to_unit  # noqa: E402
 
 
 def earth_rate_figure(nf: NorthFinding):
     """Level-axis gyro outputs (°/h, bias and drift removed) vs table angle (°) with the fit."""
-    fig, ax = plt.subplots(figsize=(8, 4.5), layout="constrained")
+    fig, ax = plt.subplots(figsize=(8, 4.5), layout=FittedMargins())
     obs, fit, geom = nf.obs, nf.fit, nf.geometry
     drift = np.nan_to_num(fit.drift) * (obs.t - fit.t_ref)[:, None]
     grid = np.linspace(0.0, 2 * np.pi, 361)
@@ -51,7 +52,7 @@ def earth_rate_figure(nf: NorthFinding):
 
 def azimuth_figure(nf: NorthFinding):
     """Azimuth per unit (pair, turn, lap) as the distance from the mean (mrad) vs time (min)."""
-    fig, ax = plt.subplots(figsize=(8, 4.5), layout="constrained")
+    fig, ax = plt.subplots(figsize=(8, 4.5), layout=FittedMargins())
     dev = angle_diff(nf.unit_azimuth, nf.azimuth) * 1e3
     ax.plot(nf.unit_time / 60.0, dev, "o-", ms=3, lw=0.6, label=f"per {nf.units}")
     ax.axhline(0.0, color="k", lw=1, label=f"mean {np.degrees(wrap_2pi(nf.azimuth)):.3f}°")
@@ -76,7 +77,7 @@ def pairing_figure(nf: NorthFinding):
     d = nf.detail
     if not isinstance(d, RedundantResult):
         raise TypeError("pairing_figure needs a redundant-configuration result")
-    fig, ax = plt.subplots(figsize=(8, 4.5), layout="constrained")
+    fig, ax = plt.subplots(figsize=(8, 4.5), layout=FittedMargins())
     k = np.arange(len(d.pairings))
     dev = angle_diff(d.azimuth, nf.azimuth) * 1e3
     for t in range(dev.shape[0]):
@@ -95,7 +96,7 @@ def pairing_figure(nf: NorthFinding):
 
 def repeatability_figure(rows: list[dict], title: str = "Azimuth repeatability over sequences"):
     """Distance of each session's mean from the mean of all (mrad), from ``sequence_table`` rows."""
-    fig, ax = plt.subplots(figsize=(6, 4), layout="constrained")
+    fig, ax = plt.subplots(figsize=(6, 4), layout=FittedMargins())
     labels = [r["sequence"] for r in rows]
     dist = [r["distance_mrad"] for r in rows]
     ax.errorbar(range(len(rows)), dist, yerr=[r["sigma_mrad"] for r in rows], fmt="o", capsize=3)

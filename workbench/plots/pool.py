@@ -25,7 +25,7 @@ DPI = 110  # dots per inch of every saved figure
 def _save(figures: Mapping, fig_dir: Path, names: Iterable[str]) -> None:
     for name in names:
         tmp = fig_dir / f".{name}.tmp.png"
-        figures[name].savefig(tmp, dpi=DPI)  # laid out once when drawn (constrained layout), not re-fitted here
+        figures[name].savefig(tmp, dpi=DPI)  # laid out once when drawn (layout.FittedMargins), not re-fitted here
         tmp.replace(fig_dir / f"{name}.png")
 
 

@@ -19,6 +19,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from workbench.analysis.thermal import PolyFit, ThermalResult  # noqa: E402
+from workbench.plots.layout import FittedMargins  # noqa: E402
 from workbench.units import fit_unit, label, to_unit  # noqa: E402
 
 BRANCH_COLOURS = {1: "tab:red", -1: "tab:blue", 0: "tab:grey"}
@@ -34,7 +35,7 @@ def display_unit(quantity: str) -> str:
 def quantity_figure(fit: PolyFit):
     """Measured values and the fitted temperature model of ``fit``, one panel per axis."""
     unit = display_unit(fit.quantity)
-    fig, axes = plt.subplots(1, 3, figsize=(12, 3.8), sharex=True, layout="constrained")
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.8), sharex=True, layout=FittedMargins())
     grid = np.linspace(fit.temperature_c.min(), fit.temperature_c.max(), 200)
     for ax_i, ax in enumerate(axes):
         for d in (1, -1, 0):
@@ -60,7 +61,7 @@ def quantity_figure(fit: PolyFit):
 def residual_figure(fit: PolyFit):
     """Residuals after compensation (measured minus model) against the unit temperature."""
     unit = display_unit(fit.quantity)
-    fig, axes = plt.subplots(1, 3, figsize=(12, 3.4), sharex=True, layout="constrained")
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.4), sharex=True, layout=FittedMargins())
     for ax_i, ax in enumerate(axes):
         for d in (1, -1, 0):
             sel = fit.direction == d
@@ -80,7 +81,7 @@ def residual_figure(fit: PolyFit):
 def order_figure(fit: PolyFit):
     """Held-out RMS residual (log scale) against polynomial order, per axis; chosen order marked."""
     unit = display_unit(fit.quantity)
-    fig, ax = plt.subplots(figsize=(6, 3.8), layout="constrained")
+    fig, ax = plt.subplots(figsize=(6, 3.8), layout=FittedMargins())
     orders = np.array(fit.cv_orders)
     for ax_i in range(3):
         line = ax.semilogy(orders, to_unit(fit.cv_rms[:, ax_i], unit), "o-", label=f"{'xyz'[ax_i]}")[0]

@@ -20,6 +20,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from workbench.analysis.turntable import TriadFit  # noqa: E402
+from workbench.plots.layout import FittedMargins  # noqa: E402
 from workbench.units import label, to_unit  # noqa: E402
 
 _XYZ = "xyz"
@@ -36,7 +37,7 @@ def plot_residuals(fit: TriadFit):
     """Per-step residuals (reference subtracted) before and after compensation, per axis."""
     r = fit.residuals
     unit = _residual_unit(fit)
-    fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True, layout="constrained")
+    fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True, layout=FittedMargins())
     x = np.arange(len(r))
     for ax, when in zip(axes, ("before", "after")):
         for k, a in enumerate(_XYZ):
@@ -70,7 +71,7 @@ def _rate_rows(fit: TriadFit):
 def plot_rate_tracking(fit: TriadFit, full_scale: float):
     """Compensated gyro rate vs table (encoder) rate per rate step, and the residual in % FS."""
     axis, rate, before, after = _rate_rows(fit)
-    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(8, 6.5), sharex=True, layout="constrained")
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(8, 6.5), sharex=True, layout=FittedMargins())
     for k, (a, mk) in enumerate(zip(_XYZ, "os^")):
         sel = axis == k
         ax1.plot(to_unit(rate[sel], "deg/s"), to_unit(rate[sel] + after[sel], "deg/s"), mk, ms=7 - 2 * k,
@@ -98,7 +99,7 @@ def plot_scale_factor_vs_rate(fit: TriadFit):
     offsets = np.asarray(fit.notes.get("step_offsets", np.zeros((len(rate), 3))))
     idx = np.arange(len(rate))
     raw_sf = (before - offsets[idx, axis]) / rate
-    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(8, 6.5), sharex=True, layout="constrained")
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(8, 6.5), sharex=True, layout=FittedMargins())
     for k, (a, mk) in enumerate(zip(_XYZ, "os^")):
         sel = axis == k
         ax1.plot(to_unit(rate[sel], "deg/s"), raw_sf[sel] * 1e6, mk, ms=5, label=f"gyro {a}")
@@ -118,7 +119,7 @@ def plot_turn_checks(checks: list):
     """Hand-made turn checks (°): integrated angle minus nominal, closure, wobble, tilt, motion around."""
     names = ["angle - nominal", "closure", "wobble rms", "backward", "axis tilt", "gravity change",
              "motion before", "motion after"]
-    fig, ax = plt.subplots(figsize=(9, 4.5), layout="constrained")
+    fig, ax = plt.subplots(figsize=(9, 4.5), layout=FittedMargins())
     width = 0.8 / max(1, len(checks))
     top, bottom = 1e-3, 0.0  # ° (the symlog threshold): limits from the largest bar either way
     for k, c in enumerate(checks):
