@@ -195,23 +195,17 @@ def test_zarupt_window_is_capped_at_the_update_interval():
     np.testing.assert_array_equal(runs[0].attitude_sigma, runs[1].attitude_sigma)
 
 
-def test_zarupt_through_turns_from_a_wide_heading_prior_warns(pre_calibration):
+def test_zarupt_through_turns_with_a_wide_accel_bias_prior_warns(pre_calibration):
+    # the consistency table of docs/navigation.md: over 20 seeds pitch / x accel bias errors are 1.5-1.6x their
+    # sigma with ZARUPT through turns at a 1 mg horizontal accel-bias prior, within the chi-square band at 0.3 mg
     samples, _, noise, still = pre_calibration
-    for prior_deg_h, warned in ((3.0, True), (1.0, False)):  # gyrocompass heading sigma 13° / 4.5°
-        cfg = zupt.ZuptConfig(level_s=30.0, measurements=("position", "velocity", "zarupt"),
-                              heading_source="gyrocompass", gyro_bias_prior=np.radians(prior_deg_h) / 3600)
+    for meas, prior, warned in ((("position", "velocity", "zarupt"), 0.01, True),
+                                (("position", "velocity", "zarupt"), 0.003, False),
+                                (("position", "velocity"), 0.01, False)):
+        cfg = zupt.ZuptConfig(level_s=30.0, measurements=meas, heading_source="gyrocompass",
+                              gyro_bias_prior=np.radians(3.0) / 3600, accel_bias_prior=prior)
         res = zupt.align(samples, noise, LAT, None, 0.0, cfg, still=still)
-        assert any("linearised" in w for w in res.warnings) == warned, (prior_deg_h, res.warnings)
-    cfg = zupt.ZuptConfig(level_s=30.0, measurements=("position", "velocity"), heading_source="gyrocompass")
-    assert not any("linearised" in w for w in zupt.align(samples, noise, LAT, None, 0.0, cfg, still=still).warnings)
-
-
-def test_rotation_refuses_the_heading_hold(pre_calibration):
-    samples, _, noise, still = pre_calibration
-    with pytest.raises(AnalysisError, match="the unit turns: the heading / attitude holds do not apply"):
-        zupt.align(samples, noise, LAT, 0.5, 0.0, zupt.ZuptConfig(level_s=30.0), still=still)
-    with pytest.raises(AnalysisError, match="no external heading"):
-        zupt.ZuptConfig(heading_source="gyrocompass")
+        assert any("optimistic" in w for w in res.warnings) == warned, (meas, prior, res.warnings)
 
 
 # -- consistency over seeds: normalised errors against a chi-square band -------------------------------
