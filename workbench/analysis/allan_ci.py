@@ -25,7 +25,6 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from functools import lru_cache
 from math import comb
 
 import numpy as np
@@ -142,13 +141,14 @@ def _sw(t: np.ndarray, alpha: int) -> np.ndarray:
         return np.where(a > 0, t ** power * np.log(np.where(a > 0, a, 1.0)), 0.0)
 
 
-def _sx(t: np.ndarray, f: float, alpha: int) -> np.ndarray:
-    if np.isinf(f):
+def _sx(t: np.ndarray, f: float | np.ndarray, alpha: int) -> np.ndarray:
+    """sx at ``t`` for the F of each point (``f`` as ``t``, finite) or the F -> inf limit (``f`` = inf)."""
+    if np.ndim(f) == 0 and np.isinf(f):
         return _sw(t, alpha + 2)
     return f ** 2 * (2.0 * _sw(t, alpha) - _sw(t - 1.0 / f, alpha) - _sw(t + 1.0 / f, alpha))
 
 
-def _sz(t: np.ndarray, f: float, alpha: int, d: int) -> np.ndarray:
+def _sz(t: np.ndarray, f: float | np.ndarray, alpha: int, d: int) -> np.ndarray:
     """Filtered covariance: the d-th central binomial difference of sx (Greenhall eq. 11)."""
     out = np.zeros_like(np.asarray(t, float))
     for k in range(-d, d + 1):
@@ -156,15 +156,97 @@ def _sz(t: np.ndarray, f: float, alpha: int, d: int) -> np.ndarray:
     return out
 
 
-def _basic_sum(j: int, big_m: float, s: float, f: float, alpha: int, d: int) -> float:
-    jj = np.arange(1, j, dtype=float)
-    first = _sz(np.array(0.0), f, alpha, d) ** 2
-    second = (1.0 - j / big_m) * _sz(np.array(j / s), f, alpha, d) ** 2
-    third = np.sum(2.0 * (1.0 - jj / big_m) * _sz(jj / s, f, alpha, d) ** 2)
-    return float(first + second + third)
+_CHUNK = 1 << 19  # points of the sums evaluated at once (~4 MB per temporary)
 
 
-@lru_cache(maxsize=4096)
+def _sum_terms(j: np.ndarray, s: np.ndarray, f: np.ndarray, alpha: int, d: int) -> np.ndarray:
+    """Per grid g (columns: sz(0), sz(J/S), sum 2 sz(i/S)^2, sum 2 i sz(i/S)^2 over i = 1 .. J - 1)
+    for the grids of ``j`` terms at spacing 1 / ``s`` and F ``f`` (all finite or all inf); a J
+    below 0 (a factor too long for the record) has no inner terms, as the scalar sum."""
+    out = np.empty((len(j), 4))
+    limit = np.isinf(f[0]) if len(f) else False
+    ends = np.cumsum(np.abs(j) + 1)
+    g0 = 0
+    while g0 < len(j):
+        g1 = max(int(np.searchsorted(ends, ends[g0] - (abs(j[g0]) + 1) + _CHUNK, side="right")), g0 + 1)
+        counts = np.abs(j[g0:g1]) + 1  # i = 0 .. J
+        seg = np.repeat(np.arange(g1 - g0), counts)
+        i = (np.arange(len(seg)) - np.repeat(np.cumsum(counts) - counts, counts)) * np.sign(j[g0:g1] + 0.5)[seg]
+        t = i / s[g0:g1][seg]
+        z = _sz(t, np.inf if limit else f[g0:g1][seg], alpha, d)
+        first = np.cumsum(counts) - counts
+        inner = (i > 0) & (i < j[g0:g1][seg])
+        w = np.where(inner, 2.0 * z ** 2, 0.0)
+        out[g0:g1, 0] = z[first]
+        out[g0:g1, 1] = z[first + counts - 1]
+        out[g0:g1, 2] = np.bincount(seg, w, g1 - g0)
+        out[g0:g1, 3] = np.bincount(seg, w * i, g1 - g0)
+        g0 = g1
+    return out
+
+
+def _basic_inv(j: np.ndarray, big_m: np.ndarray, s: np.ndarray, f: np.ndarray, alpha: int, d: int) -> np.ndarray:
+    """1 / edf = BasicSum(J, M, S, F) / (M sz(0)^2) of every point; points sharing the grid
+    (J, S, F) share its sz values (the rescaled long sums of one record mostly do)."""
+    key = np.column_stack((j, s, f))
+    grids, which = np.unique(key, axis=0, return_inverse=True)
+    which = which.ravel()
+    terms = np.empty((len(grids), 4))
+    for limit in (False, True):
+        sel = np.flatnonzero(np.isinf(grids[:, 2]) == limit)
+        if len(sel):
+            terms[sel] = _sum_terms(grids[sel, 0].astype(int), grids[sel, 1], grids[sel, 2], alpha, d)
+    z0, zj, sum2, sum2i = terms[which].T
+    with np.errstate(divide="ignore", invalid="ignore"):
+        basic = z0 ** 2 + (1.0 - j / big_m) * zj ** 2 + (sum2 - sum2i / big_m)
+        return basic / (z0 ** 2 * big_m)
+
+
+_MEMO: dict[tuple, float] = {}
+_MEMO_SIZE = 1 << 17  # EDFs kept between calls (the columns of one record share theirs)
+
+
+def edf_greenhall_many(alpha: np.ndarray | int, d: int, m: np.ndarray | int, n_phase: np.ndarray | int,
+                       overlapping: bool = True, modified: bool = False) -> np.ndarray:
+    """:func:`edf_greenhall` of every element of ``alpha``, ``m``, ``n_phase`` (broadcast; integers)."""
+    al, mm, nn = (a.ravel() for a in np.broadcast_arrays(*(np.asarray(v, dtype=np.int64) for v in (alpha, m, n_phase))))
+    shape = np.broadcast_shapes(np.shape(alpha), np.shape(m), np.shape(n_phase))
+    keys = [(int(a), d, int(k), int(n), overlapping, modified) for a, k, n in zip(al, mm, nn)]
+    out = np.array([_MEMO.get(key, np.nan) for key in keys])
+    todo = np.flatnonzero([key not in _MEMO for key in keys])
+    if len(todo):
+        out[todo] = _edf_greenhall_new(al[todo], d, mm[todo], nn[todo], overlapping, modified)
+        if len(_MEMO) + len(todo) > _MEMO_SIZE:
+            _MEMO.clear()
+        _MEMO.update((keys[i], float(out[i])) for i in todo)
+    return out.reshape(shape)
+
+
+def _edf_greenhall_new(al: np.ndarray, d: int, mm: np.ndarray, nn: np.ndarray, overlapping: bool,
+                       modified: bool) -> np.ndarray:
+    m = mm.astype(float)
+    f = np.ones(len(m)) if modified else m.copy()
+    s = m.copy() if overlapping else np.ones(len(m))
+    ell = m / f + m * d
+    big_m = 1.0 + np.floor(s * (nn - ell) / m)
+    j = np.minimum(big_m, (d + 1) * s)
+    out = np.empty(len(m))
+    closed = (al == 2) & (np.ceil(big_m / s) > d) & (not modified)
+    if closed.any():  # white phase, unmodified: closed form (Greenhall & Riley case 4)
+        a0 = comb(4 * d, 2 * d) / comb(2 * d, d) ** 2
+        out[closed] = 1.0 / ((a0 - d / 2.0 / (big_m[closed] / s[closed])) / big_m[closed])
+    if not modified:  # F = m large: the F -> inf limit avoids cancellation in sx
+        f[(al <= 0) & (mm * (d + 1) > J_MAX)] = np.inf
+    long = j > J_MAX  # rescale to J_MAX terms, keeping r = M / S and the shape of the sum
+    scale = J_MAX / j[long]
+    big_m[long], s[long], j[long] = big_m[long] * scale, s[long] * scale, J_MAX
+    j = j.astype(np.int64)
+    for a in np.unique(al[~closed]):
+        sel = np.flatnonzero(~closed & (al == a))
+        out[sel] = 1.0 / _basic_inv(j[sel], big_m[sel], s[sel], f[sel], int(a), d)
+    return out
+
+
 def edf_greenhall(alpha: int, d: int, m: int, n_phase: int, overlapping: bool = True,
                   modified: bool = False) -> float:
     """Equivalent degrees of freedom of a d-th difference variance (Greenhall & Riley 2003).
@@ -173,23 +255,20 @@ def edf_greenhall(alpha: int, d: int, m: int, n_phase: int, overlapping: bool = 
     number of phase points; ``overlapping`` (S = m) and ``modified`` (F = 1) choose the
     estimator: oadev (d=2, overlapping), mdev (d=2, overlapping, modified), ohdev (d=3).
     """
-    alpha = int(alpha)
-    f = 1.0 if modified else float(m)
-    s = float(m) if overlapping else 1.0
-    ell = m / f + m * d
-    big_m = 1.0 + np.floor(s * (n_phase - ell) / m)
-    j = min(big_m, (d + 1) * s)
-    if not modified and alpha == 2 and np.ceil(big_m / s) > d:
-        # white phase, unmodified: closed form (Greenhall & Riley case 4)
-        a0 = comb(4 * d, 2 * d) / comb(2 * d, d) ** 2
-        return float(1.0 / ((a0 - d / 2.0 / (big_m / s)) / big_m))
-    if not modified and alpha <= 0 and m * (d + 1) > J_MAX:
-        f = np.inf  # F = m large: the F -> inf limit avoids cancellation in sx
-    if j > J_MAX:  # rescale to J_MAX terms, keeping r = M / S and the shape of the sum
-        scale = J_MAX / j
-        big_m, s, j = big_m * scale, s * scale, J_MAX
-    inv = _basic_sum(int(j), big_m, s, f, alpha, d) / (_sz(np.array(0.0), f, alpha, d) ** 2 * big_m)
-    return float(1.0 / inv)
+    return float(edf_greenhall_many(alpha, d, m, n_phase, overlapping, modified)[()])
+
+
+def pick_wider(first: np.ndarray, second: np.ndarray, edf) -> np.ndarray:
+    """Per element, of the exponents ``first`` and ``second`` the one whose ``edf(alphas, index)``
+    (the EDF of those exponents at those elements) is smaller: the wider interval; ``first`` on ties."""
+    first, second = np.broadcast_arrays(np.asarray(first, float), np.asarray(second, float))
+    out = first.copy()
+    idx = np.flatnonzero(first != second)
+    if len(idx):
+        flat = out.ravel()
+        wider = edf(second.ravel()[idx], idx) < edf(first.ravel()[idx], idx)
+        flat[idx[wider]] = second.ravel()[idx[wider]]
+    return out
 
 
 # -- intervals -----------------------------------------------------------------------------
@@ -215,7 +294,13 @@ def confidence(curve: DeviationCurve, x: np.ndarray | None = None, alpha: np.nda
 
 
 def _edf(curve: DeviationCurve, alpha: np.ndarray) -> np.ndarray:
-    return np.array([[_edf_one(curve, k, a) for a in alpha[k]] for k in range(len(curve.m))]).reshape(alpha.shape)
+    """EDF (K, C) of every point of ``curve`` for the exponents ``alpha`` (K, C)."""
+    return _edf_at(curve, alpha, np.broadcast_to(curve.m[:, None], alpha.shape))
+
+
+def _edf_at(curve: DeviationCurve, alpha: np.ndarray, m: np.ndarray) -> np.ndarray:
+    return edf_greenhall_many(alpha.astype(np.int64), _D[curve.kind], m, curve.n_samples + 1, True,
+                              curve.kind == "mdev")
 
 
 def _fill_short(curve: DeviationCurve, alpha: np.ndarray) -> np.ndarray:
@@ -223,18 +308,12 @@ def _fill_short(curve: DeviationCurve, alpha: np.ndarray) -> np.ndarray:
     tau and the one from the curve's local slope, take the one giving fewer degrees of
     freedom (the wider, conservative interval)."""
     slope = alpha_from_slope(curve)
+    known = np.isfinite(alpha)
+    rows = np.arange(len(curve.m))[:, None]
+    carried = np.maximum.accumulate(np.where(known, rows, -1), axis=0)
+    cols = np.arange(alpha.shape[1])
+    last = np.where(carried >= 0, alpha[np.maximum(carried, 0), cols], slope[0])
     out = alpha.copy()
-    for c in range(alpha.shape[1]):
-        last = slope[0, c]
-        for k in range(len(curve.m)):
-            if np.isfinite(alpha[k, c]):
-                last = alpha[k, c]
-                continue
-            cands = {last, slope[k, c]}
-            out[k, c] = min(cands, key=lambda a: _edf_one(curve, k, a))
+    k, c = np.nonzero(~known)
+    out[k, c] = pick_wider(last[k, c], slope[k, c], lambda a, i: _edf_at(curve, a, curve.m[k[i]]))
     return out
-
-
-def _edf_one(curve: DeviationCurve, k: int, a: float) -> float:
-    """EDF of point k of ``curve`` for noise exponent ``a``."""
-    return edf_greenhall(int(a), _D[curve.kind], int(curve.m[k]), curve.n_samples + 1, True, curve.kind == "mdev")

@@ -36,7 +36,7 @@ phase points (T = N tau0, as Stable32):
 
 MTIE and TIE rms get no interval (NaN). The interval is the chi-squared one at two-sided ``level``.
 
-Public: :class:`StabilityCI`, :func:`intervals`, :func:`edf_of`, :func:`edf_simple`.
+Public: :class:`StabilityCI`, :func:`intervals`, :func:`edf_of`, :func:`edf_of_many`, :func:`edf_simple`.
 """
 
 from __future__ import annotations
@@ -45,8 +45,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from workbench.analysis.allan_ci import MAX_POINTS_ID, chi2_ppf, edf_greenhall, noise_id_spread
+from workbench.analysis.allan_ci import MAX_POINTS_ID, chi2_ppf, edf_greenhall_many, noise_id_spread, pick_wider
 from workbench.analysis.stability import Stability, stability
+from workbench.errors import AnalysisError
 
 AMBIGUOUS_SE = 1.0  # standard errors of the lag-1 alpha within which a second noise type is considered
 FLICKER_AVERAGED = 1.5  # alpha on the block-averaged phase below which "white PM" is flicker PM
@@ -78,76 +79,97 @@ class StabilityCI:
     level: float
 
 
-def _theo1_edf(alpha: int, n: int, m: int) -> float:
-    """Theo1 EDF (Howe & Tasset; SP 1065 table 11), r = 0.75 m, N phase points."""
+def _theo1_edf(alpha: np.ndarray, n: int, m: np.ndarray) -> np.ndarray:
+    """Theo1 EDF (Howe & Tasset; SP 1065 table 11), r = 0.75 m, N phase points (``alpha`` in -2 .. 2)."""
     r = 0.75 * m
-    if alpha == 2:
-        return 0.86 * (n + 1) * (n - 4.0 * r / 3.0) / (n - r) * r / (r + 1.14)
-    if alpha == 1:
-        return (4.798 * n ** 2 - 6.374 * n * r + 12.387 * r) / (np.sqrt(r + 36.6) * (n - r)) * r / (r + 0.3)
-    if alpha == 0:
-        return ((4.1 * n + 0.8) / r - (3.1 * n + 6.5) / n) * r ** 1.5 / (r ** 1.5 + 5.2)
-    if alpha == -1:
-        return (2.0 * n ** 2 - 1.3 * n * r - 3.5 * r) / (n * r) * r ** 3 / (r ** 3 + 2.3)
-    return (4.4 * n - 2.0) / (2.9 * r) * ((4.4 * n - 1) ** 2 - 8.6 * r * (4.4 * n - 1) + 11.4 * r ** 2) \
-        / (4.4 * n - 3) ** 2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.select([alpha == 2, alpha == 1, alpha == 0, alpha == -1], [
+            0.86 * (n + 1) * (n - 4.0 * r / 3.0) / (n - r) * r / (r + 1.14),
+            (4.798 * n ** 2 - 6.374 * n * r + 12.387 * r) / (np.sqrt(r + 36.6) * (n - r)) * r / (r + 0.3),
+            ((4.1 * n + 0.8) / r - (3.1 * n + 6.5) / n) * r ** 1.5 / (r ** 1.5 + 5.2),
+            (2.0 * n ** 2 - 1.3 * n * r - 3.5 * r) / (n * r) * r ** 3 / (r ** 3 + 2.3)],
+            (4.4 * n - 2.0) / (2.9 * r) * ((4.4 * n - 1) ** 2 - 8.6 * r * (4.4 * n - 1) + 11.4 * r ** 2)
+            / (4.4 * n - 3) ** 2)
+
+
+def _edf_simple_many(alpha: np.ndarray, n: int, m: np.ndarray) -> np.ndarray:
+    m = m.astype(float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.select([alpha == 2, alpha == 1, alpha == 0, alpha == -1], [
+            (n + 1) * (n - 2 * m) / (2.0 * (n - m)),
+            np.exp(np.sqrt(np.log((n - 1) / (2.0 * m)) * np.log((2 * m + 1) * (n - 1) / 4.0))),
+            (3.0 * (n - 1) / (2 * m) - 2.0 * (n - 2) / n) * 4 * m ** 2 / (4 * m ** 2 + 5),
+            np.where(m == 1, 2.0 * (n - 2) / (2.3 * n - 4.9), 5.0 * n ** 2 / (4 * m * (n + 3 * m)))],
+            (n - 2.0) / m * ((n - 1) ** 2 - 3.0 * m * (n - 1) + 4.0 * m ** 2) / (n - 3.0) ** 2)
 
 
 def edf_simple(alpha: int, n: int, m: int) -> float:
     """The simple EDF formulas of NIST SP 1065 (Howe, Allan & Barnes 1981) for noise exponent
     ``alpha`` (2 .. -2) at factor ``m`` on ``n`` phase points (as allantools' ``edf_simple``)."""
-    if alpha == 2:
-        return (n + 1) * (n - 2 * m) / (2.0 * (n - m))
-    if alpha == 1:
-        return float(np.exp(np.sqrt(np.log((n - 1) / (2.0 * m)) * np.log((2 * m + 1) * (n - 1) / 4.0))))
-    if alpha == 0:
-        return (3.0 * (n - 1) / (2 * m) - 2.0 * (n - 2) / n) * 4 * m ** 2 / (4 * m ** 2 + 5)
-    if alpha == -1:
-        return 2.0 * (n - 2) / (2.3 * n - 4.9) if m == 1 else 5.0 * n ** 2 / (4 * m * (n + 3 * m))
-    return (n - 2.0) / m * ((n - 1) ** 2 - 3.0 * m * (n - 1) + 4.0 * m ** 2) / (n - 3.0) ** 2
+    return float(_edf_simple_many(np.array([int(alpha)]), n, np.array([m]))[0])
 
 
 def edf_of(stat: str, alpha: int, m: int, n_phase: int, n_used: int | None = None) -> float:
     """Equivalent degrees of freedom of ``stat`` at factor ``m`` for noise exponent ``alpha`` on a
     record of ``n_phase`` phase points (``n_used``: pairs actually used when gaps were skipped;
     the EDF is that of a gap-free record with as many pairs)."""
-    alpha = int(alpha)
+    return float(edf_of_many(stat, np.array([int(alpha)]), np.array([m]), n_phase,
+                             None if n_used is None else np.array([n_used]))[0])
+
+
+def edf_of_many(stat: str, alpha: np.ndarray, m: np.ndarray, n_phase: int,
+                n_used: np.ndarray | None = None) -> np.ndarray:
+    """:func:`edf_of` at every factor of ``m`` (K,) with exponents ``alpha`` (K,) (``n_used`` (K,) or None)."""
+    alpha = np.asarray(alpha, float).astype(np.int64)
+    m = np.asarray(m).astype(np.int64)
     if stat in NO_INTERVAL:
-        return float("nan")
+        return np.full(len(m), np.nan)
     if stat in _GREENHALL:
         d, overlapping, modified = _GREENHALL[stat]
+        n_rec = np.full(len(m), n_phase, dtype=np.int64)
         if n_used is not None:  # the record a gap-free run of n_used terms would have
+            n_used = np.asarray(n_used).astype(np.int64)
             if overlapping:
-                n_phase = int(n_used) + (3 * m - 1 if modified else d * m)
+                n_rec = n_used + (3 * m - 1 if modified else d * m)
             else:
-                n_phase = (int(n_used) + d - 1) * m + 1
-        a = max(alpha, 1 - 2 * d + 1)  # Greenhall needs alpha + 2d > 1
-        return edf_greenhall(a, d, int(m), int(n_phase), overlapping, modified)
+                n_rec = (n_used + d - 1) * m + 1
+        # Greenhall needs alpha + 2d > 1
+        return edf_greenhall_many(np.maximum(alpha, 1 - 2 * d + 1), d, m, n_rec, overlapping, modified)
+    out = np.empty(len(m))
+    mf = m.astype(float)
     if stat == "totdev":
-        oadev = edf_greenhall(max(alpha, -2), 2, int(m), int(n_phase), True, False)
-        if alpha == 2:  # white PM: the reflected ends' share (see the module docstring)
-            return 1.0 / (1.0 / oadev + (m / n_phase) ** 2 / TOT_WPM_ENDS)
-        if alpha > 0:  # flicker PM: the OADEV's
-            return oadev
-        b, c = _TOT[max(alpha, -2)]
-        table = b * n_phase / m - c
-        return min(table, oadev) if m < TOT_OADEV_BELOW else table
+        oadev = edf_greenhall_many(np.maximum(alpha, -2), 2, m, n_phase, True, False)
+        fm = np.minimum(np.maximum(alpha, -2), 0)
+        b = np.select([fm == 0, fm == -1], [_TOT[0][0], _TOT[-1][0]], _TOT[-2][0])
+        c = np.select([fm == 0, fm == -1], [_TOT[0][1], _TOT[-1][1]], _TOT[-2][1])
+        table = b * n_phase / mf - c
+        fm_edf = np.where(m < TOT_OADEV_BELOW, np.minimum(table, oadev), table)
+        # white PM: the reflected ends' share (see the module docstring); flicker PM: the OADEV's
+        return np.select([alpha == 2, alpha > 0], [1.0 / (1.0 / oadev + (mf / n_phase) ** 2 / TOT_WPM_ENDS), oadev],
+                         fm_edf)
     if stat in ("mtotdev", "ttotdev"):
-        if m < MTOT_MDEV_BELOW:  # short taus: the MDEV's degrees of freedom (see the module docstring)
-            return edf_greenhall(max(alpha, -2), 2, int(m), int(n_phase), True, True)
-        b, c = _MTOT[int(np.clip(alpha, -2, 2))]
-        return b * n_phase / m - c
+        short = m < MTOT_MDEV_BELOW  # short taus: the MDEV's degrees of freedom (see the module docstring)
+        if short.any():
+            out[short] = edf_greenhall_many(np.maximum(alpha[short], -2), 2, m[short], n_phase, True, True)
+        a = np.clip(alpha[~short], -2, 2)
+        b = np.array([_MTOT[int(v)][0] for v in a])
+        c = np.array([_MTOT[int(v)][1] for v in a])
+        out[~short] = b * n_phase / mf[~short] - c
+        return out
     if stat == "htotdev":
-        if m == 1 or alpha < -2:  # htotdev is the ohdev at m = 1; no total formula below RW FM
-            return edf_greenhall(max(alpha, -4), 3, int(m), int(n_phase), True, False)
-        if alpha == 2:  # white PM: the Monte Carlo floor (see the module docstring)
-            return HTOT_WPM * n_phase
-        if m < HTOT_FROM or alpha > 0:
-            return edf_simple(alpha, n_phase, m)
-        b0, b1 = _HTOT[alpha]
-        return n_phase / m / (b0 + b1 * m / n_phase)
+        ohdev = (m == 1) | (alpha < -2)  # htotdev is the ohdev at m = 1; no total formula below RW FM
+        simple = ~ohdev & (alpha != 2) & ((m < HTOT_FROM) | (alpha > 0))
+        howe = ~ohdev & (alpha != 2) & ~simple
+        if ohdev.any():
+            out[ohdev] = edf_greenhall_many(np.maximum(alpha[ohdev], -4), 3, m[ohdev], n_phase, True, False)
+        out[~ohdev & (alpha == 2)] = HTOT_WPM * n_phase  # white PM: the Monte Carlo floor (module docstring)
+        out[simple] = _edf_simple_many(alpha[simple], n_phase, m[simple])
+        b0 = np.array([_HTOT[int(v)][0] for v in alpha[howe]])
+        b1 = np.array([_HTOT[int(v)][1] for v in alpha[howe]])
+        out[howe] = n_phase / mf[howe] / (b0 + b1 * mf[howe] / n_phase)
+        return out
     if stat in ("theo1", "theoh"):
-        return _theo1_edf(int(np.clip(alpha, -2, 2)), n_phase, m)
+        return _theo1_edf(np.clip(alpha, -2, 2), n_phase, mf)
     raise ValueError(stat)
 
 
@@ -200,14 +222,13 @@ def intervals(curve: Stability, x: np.ndarray, level: float = 0.95, alpha: np.nd
         alpha = _conservative(curve, alpha, other)
         alpha = _fill(curve, alpha, x)
     alpha = np.asarray(alpha, float)
-    theo_part = curve.stat == "theoh"
     edf = np.empty(k_n)
-    for k in range(k_n):
-        stat = curve.stat
-        if theo_part:
-            stat = "theo1" if curve.tau[k] != curve.m[k] / curve.rate else "oadev"
-        gaps = curve.stat in _GREENHALL
-        edf[k] = edf_of(stat, int(alpha[k]), int(curve.m[k]), curve.n_phase, int(curve.n[k]) if gaps else None)
+    if curve.stat == "theoh":  # the oadev part at tau = m / rate, Theo1 beyond
+        theo = curve.tau != curve.m / curve.rate
+        edf[theo] = edf_of_many("theo1", alpha[theo], curve.m[theo], curve.n_phase)
+        edf[~theo] = edf_of_many("oadev", alpha[~theo], curve.m[~theo], curve.n_phase)
+    else:
+        edf = edf_of_many(curve.stat, alpha, curve.m, curve.n_phase, curve.n if curve.stat in _GREENHALL else None)
     edf = np.maximum(edf, 1e-3)
     q = (1.0 - level) / 2.0
     lo = curve.dev * np.sqrt(edf / chi2_ppf(1.0 - q, edf))
@@ -215,14 +236,19 @@ def intervals(curve: Stability, x: np.ndarray, level: float = 0.95, alpha: np.nd
     return StabilityCI(curve, alpha, edf, lo, hi, level)
 
 
+def _wider(curve: Stability, first: np.ndarray, second: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """At the taus ``rows``, of the exponents ``first`` and ``second`` the one with fewer degrees of freedom."""
+    stat = curve.stat if curve.stat != "theoh" else "theo1"
+    return pick_wider(first, second, lambda a, i: edf_of_many(stat, a, curve.m[rows[i]], curve.n_phase))
+
+
 def _conservative(curve: Stability, alpha: np.ndarray, other: np.ndarray) -> np.ndarray:
     """Where the identification is ambiguous (``other`` differs), the exponent with fewer degrees
     of freedom: flicker PM read as white PM on 30-300 decimated points would otherwise give
     intervals covering ~0.9 instead of 0.95 (benchmarks/allan_ci_coverage.py)."""
     out = alpha.copy()
-    stat = curve.stat if curve.stat != "theoh" else "theo1"
-    for k in np.flatnonzero(np.isfinite(alpha) & (other != alpha)):
-        out[k] = min((alpha[k], other[k]), key=lambda a: edf_of(stat, int(a), int(curve.m[k]), curve.n_phase))
+    rows = np.flatnonzero(np.isfinite(alpha) & (other != alpha))
+    out[rows] = _wider(curve, alpha[rows], other[rows], rows)
     return out
 
 
@@ -238,28 +264,34 @@ def _fill(curve: Stability, alpha: np.ndarray, x: np.ndarray) -> np.ndarray:
         slope = np.clip(np.round(-2.0 * mu - 1.0), -2, 1)
     else:
         slope = np.zeros(1)
-    last = slope[0] if not np.isfinite(alpha[0]) else alpha[0]
-    for k in range(len(alpha)):
-        if np.isfinite(alpha[k]):
-            last = alpha[k]
-            continue
-        cands = {float(last), float(slope[k])}
-        pm = _pm_by_ratio(x, max(int(round(curve.tau[k] * curve.rate)), 1)) if cands == {1.0, 2.0} else None
-        out[k] = pm if pm is not None else min(
-            cands, key=lambda a: edf_of(curve.stat if curve.stat != "theoh" else "theo1", int(a), int(curve.m[k]),
-                                        curve.n_phase))
+    known = np.isfinite(alpha)
+    carried = np.maximum.accumulate(np.where(known, np.arange(len(alpha)), -1))
+    last = np.where(carried >= 0, alpha[np.maximum(carried, 0)], slope[0])
+    rows = np.flatnonzero(~known)
+    lo, hi = np.minimum(last[rows], slope[rows]), np.maximum(last[rows], slope[rows])
+    pm = rows[(lo == 1.0) & (hi == 2.0)]  # white or flicker PM: by the R(n) ratio
+    ratio = _pm_by_ratio(x, np.maximum(np.round(curve.tau[pm] * curve.rate).astype(np.int64), 1))
+    out[pm[np.isfinite(ratio)]] = ratio[np.isfinite(ratio)]
+    rest = rows[~np.isin(rows, pm[np.isfinite(ratio)])]
+    out[rest] = _wider(curve, last[rest], slope[rest], rest)
     return out
 
 
-def _pm_by_ratio(x: np.ndarray, m: int) -> float | None:
-    """White (2) or flicker (1) PM at factor ``m`` of phase ``x`` from R(n) = MVAR / AVAR (Riley,
+def _pm_by_ratio(x: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """White (2) or flicker (1) PM at factors ``m`` (K,) of phase ``x`` from R(n) = MVAR / AVAR (Riley,
     SP 1065 5.6): 1 / m for white PM, 3.37 / (1.04 + 3 ln(pi m)) for flicker PM (bandwidth the
     Nyquist frequency); the boundary is their geometric mean, at most 3 / m (white PM's ratio
     scatters by ~1 / m at long taus, flicker PM's far more: a tight white-PM side keeps flicker PM
-    from being read as white, the optimistic error). None if MVAR needs more than the record
-    (3 m + 1 points)."""
-    if m < 2 or 3 * m + 1 > len(x):
-        return None
-    ratio = (stability(x, 1.0, "mdev", "phase", [m]).dev[0] / stability(x, 1.0, "oadev", "phase", [m]).dev[0]) ** 2
-    flicker = 3.37 / (1.04 + 3.0 * np.log(np.pi * m))
-    return 2.0 if ratio < min(np.sqrt(flicker / m), 3.0 / m) else 1.0
+    from being read as white, the optimistic error). NaN where MVAR needs more than the record
+    (3 m + 1 points) or m < 2."""
+    out = np.full(len(m), np.nan)
+    ok = (m >= 2) & (3 * m + 1 <= len(x))
+    if ok.any():
+        mo = np.unique(m[ok])
+        mvar, avar = (stability(x, 1.0, stat, "phase", mo) for stat in ("mdev", "oadev"))
+        if len(mvar.m) != len(mo) or len(avar.m) != len(mo):
+            raise AnalysisError(f"R(n) noise identification: no complete difference at some of m = {mo.tolist()}")
+        ratio = (mvar.dev / avar.dev)[np.searchsorted(mo, m[ok])] ** 2
+        flicker = 3.37 / (1.04 + 3.0 * np.log(np.pi * m[ok]))
+        out[ok] = np.where(ratio < np.minimum(np.sqrt(flicker / m[ok]), 3.0 / m[ok]), 2.0, 1.0)
+    return out
