@@ -284,12 +284,19 @@ class CampaignPlan:
         return float(sum(p.duration_s for p in seq.expand()))
 
     def preload(self) -> None:
-        """Import what recording needs (the simulated rig, Parquet), once, before worker processes fork."""
+        """Import what recording needs (the simulated rig, Parquet) and load what drawing figures needs,
+        once, before worker processes fork."""
         import pyarrow.pandas_compat  # noqa: F401 - frames to Arrow tables
         import pyarrow.parquet  # noqa: F401 - the step parts and the samples file
 
         if self.cfg.driver == "sim":
+            import workbench.sim.imperfections  # noqa: F401 - the lab imperfections the rig is opened with
             import workbench.sim.rig  # noqa: F401
+            import workbench.sim.sensor  # noqa: F401 - the rig's sensor model, imported when it starts
+        if self.figures:
+            from workbench.plots.pool import prepare_drawing
+
+            prepare_drawing()
 
     def record(self, k: int, progress: Progress | None = None) -> Session:
         """Record procedure ``k``'s sequence."""

@@ -22,6 +22,20 @@ MANY = 4  # figures from which a second process draws half of them
 DPI = 110  # dots per inch of every saved figure
 
 
+def prepare_drawing() -> None:
+    """Load what the first figure saved in a process loads: the Agg renderer, the PNG writer, the default
+    font and the mathtext parser (log-axis tick labels). Called before worker processes fork, they
+    share it instead of each loading it."""
+    import PIL.Image
+    from matplotlib.backends.backend_agg import RendererAgg
+    from matplotlib.font_manager import FontProperties
+
+    PIL.Image.preinit()
+    renderer = RendererAgg(1, 1, DPI)
+    renderer.get_text_width_height_descent("0", FontProperties(), ismath=False)
+    renderer.get_text_width_height_descent(r"$\mathdefault{10^{0}}$", FontProperties(), ismath=True)
+
+
 def _save(figures: Mapping, fig_dir: Path, names: Iterable[str]) -> None:
     for name in names:
         tmp = fig_dir / f".{name}.tmp.png"
