@@ -145,7 +145,38 @@ def _sx(t: np.ndarray, f: float | np.ndarray, alpha: int) -> np.ndarray:
     """sx at ``t`` for the F of each point (``f`` as ``t``, finite) or the F -> inf limit (``f`` = inf)."""
     if np.ndim(f) == 0 and np.isinf(f):
         return _sw(t, alpha + 2)
+    if alpha == 1:
+        return _sx_flicker(np.asarray(t, float), np.asarray(f, float))
     return f ** 2 * (2.0 * _sw(t, alpha) - _sw(t - 1.0 / f, alpha) - _sw(t + 1.0 / f, alpha))
+
+
+_SERIES_POWERS = 7  # powers of (h / tau)^2 kept in the flicker-PM expansion (|h / tau| <= 0.1: next term < 1e-19)
+_SERIES_GAP = 10.0  # |tau| / h from which the expansion is used
+
+
+def _u2_logu(u: np.ndarray) -> np.ndarray:
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(u != 0.0, u * u * np.log(np.abs(u)), 0.0)
+
+
+def _sx_flicker(t: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """Flicker-PM sx = F^2 (2 g(t) - g(t - h) - g(t + h)), g(u) = u^2 ln|u|, h = 1 / F, without the
+    F^2 eps cancellation of the direct difference (1e-8 relative at F = 18000): with x = t F,
+    sx = 2 ln F + 2 g(x) - g(x - 1) - g(x + 1) for |x| < :data:`_SERIES_GAP`, else
+    -2 ln|t| - 3 + sum_p x^(-2p) / (p (p + 1) (2p + 1)) (the series of (1 + u)^2 ln|1 + u|
+    + (1 - u)^2 ln|1 - u| in u = 1 / x)."""
+    t, f = np.broadcast_arrays(t, f)
+    x = t * f
+    out = np.empty(x.shape)
+    near = np.abs(x) < _SERIES_GAP
+    xn = x[near]
+    out[near] = 2.0 * np.log(f[near]) + 2.0 * _u2_logu(xn) - _u2_logu(xn - 1.0) - _u2_logu(xn + 1.0)
+    u2 = x[~near] ** -2.0
+    series = np.zeros(len(u2))
+    for p in range(_SERIES_POWERS, 0, -1):  # Horner in u^2
+        series = (series + 1.0 / (p * (p + 1) * (2 * p + 1))) * u2
+    out[~near] = -2.0 * np.log(np.abs(t[~near])) - 3.0 + series
+    return out
 
 
 def _sz(t: np.ndarray, f: float | np.ndarray, alpha: int, d: int) -> np.ndarray:
@@ -185,15 +216,59 @@ def _sum_terms(j: np.ndarray, s: np.ndarray, f: np.ndarray, alpha: int, d: int) 
     return out
 
 
+def _flicker_terms(j: int, s: float, f: np.ndarray, d: int) -> np.ndarray:
+    """:func:`_sum_terms` for alpha = 1 (flicker PM) of grids sharing J and S, with F ``f`` (G,) finite.
+
+    Where every |t + k| is at least :data:`_SERIES_GAP` h (h = 1 / F), the expansion of
+    :func:`_sx_flicker` makes sz a polynomial in h^2 with coefficients on the shared lattice, and
+    sum w sz^2 a quadratic form whose matrix every grid shares; the points near t = 0 .. d are
+    evaluated per grid.
+    """
+    i = np.arange(j + 1)
+    t = i / s
+    k = np.arange(-d, d + 1)
+    coef = np.array([(-1) ** int(v) * comb(2 * d, d + int(v)) for v in k], float)
+    tau = t[:, None] + k
+    series = (np.abs(tau).min(axis=1) >= _SERIES_GAP / f.min()) & (i > 0) & (i < j)
+    ts = tau[series]
+    basis = np.empty((len(ts), _SERIES_POWERS + 1))  # sz = basis @ (1, h^2, h^4, ...)
+    basis[:, 0] = -2.0 * (np.log(np.abs(ts)) @ coef)
+    inv2 = ts ** -2.0
+    power = inv2.copy()
+    for p in range(1, _SERIES_POWERS + 1):
+        basis[:, p] = (power @ coef) / (p * (p + 1) * (2 * p + 1))
+        power *= inv2
+    h2 = (1.0 / f[:, None]) ** (2 * np.arange(_SERIES_POWERS + 1))
+    weights = 2.0 * np.column_stack((np.ones(len(ts)), i[series]))
+    out = np.empty((len(f), 4))
+    for col, w in ((2, weights[:, 0]), (3, weights[:, 1])):
+        out[:, col] = np.einsum("gp,pq,gq->g", h2, basis.T @ (w[:, None] * basis), h2)
+    e = np.flatnonzero(~series)  # i = 0 and i = J among them
+    z = _sz(np.broadcast_to(t[e], (len(f), len(e))), np.broadcast_to(f[:, None], (len(f), len(e))), 1, d)
+    w = np.where((i[e] > 0) & (i[e] < j), 2.0 * z ** 2, 0.0)
+    out[:, 0], out[:, 1] = z[:, 0], z[:, -1]
+    out[:, 2] += w.sum(axis=1)
+    out[:, 3] += w @ i[e]
+    return out
+
+
 def _basic_inv(j: np.ndarray, big_m: np.ndarray, s: np.ndarray, f: np.ndarray, alpha: int, d: int) -> np.ndarray:
     """1 / edf = BasicSum(J, M, S, F) / (M sz(0)^2) of every point; points sharing the grid
-    (J, S, F) share its sz values (the rescaled long sums of one record mostly do)."""
+    (J, S, F) share its sz values (the rescaled long sums of one record mostly do), flicker-PM
+    grids sharing J and S (F = m differs) share the expansion of :func:`_flicker_terms`."""
     key = np.column_stack((j, s, f))
     grids, which = np.unique(key, axis=0, return_inverse=True)
     which = which.ravel()
     terms = np.empty((len(grids), 4))
     for limit in (False, True):
         sel = np.flatnonzero(np.isinf(grids[:, 2]) == limit)
+        if alpha == 1 and not limit and len(sel):
+            lattices, member = np.unique(grids[sel, :2], axis=0, return_inverse=True)
+            member = member.ravel()
+            for lat in np.flatnonzero(np.bincount(member) > 1):
+                rows = sel[member == lat]
+                terms[rows] = _flicker_terms(int(lattices[lat, 0]), lattices[lat, 1], grids[rows, 2], d)
+            sel = sel[np.bincount(member)[member] == 1]
         if len(sel):
             terms[sel] = _sum_terms(grids[sel, 0].astype(int), grids[sel, 1], grids[sel, 2], alpha, d)
     z0, zj, sum2, sum2i = terms[which].T
