@@ -11,7 +11,7 @@ import pytest
 from scipy.signal import fftconvolve
 
 from workbench.analysis.allan import deviation, phase
-from workbench.analysis.allan_ci import alpha_from_slope, confidence, edf_greenhall, identify
+from workbench.analysis.allan_ci import alpha_from_slope, confidence, edf_greenhall, edf_greenhall_many, identify
 from workbench.sim.powerlaw import kasdin_response
 
 
@@ -87,3 +87,41 @@ def test_noise_id_and_slope_alpha_on_long_records():
     assert np.all(alpha[mid, 0] == 0) and np.all(alpha[mid, 1] == -2)
     slope = alpha_from_slope(curve)
     assert np.all(slope[mid, 0] == 0) and np.all(slope[mid, 1] == -2)
+
+
+def _flicker_edf_decimal(d: int, m: int, n: int) -> float:
+    """Greenhall's rescaled sum for flicker PM (alpha = 1, F = S = m) in 40-digit decimal arithmetic."""
+    from decimal import Decimal, getcontext
+    from math import comb, floor
+
+    getcontext().prec = 40
+    big_m = 1.0 + floor(m * (n - 1 - m * d) / m)
+    s, j = float(m), min(big_m, (d + 1) * m)
+    if j > 2000:
+        scale = 2000 / j
+        big_m, s, j = big_m * scale, s * scale, 2000
+    f, h, big_s, mm = Decimal(m), 1 / Decimal(m), Decimal(s), Decimal(big_m)
+
+    def g(u):
+        return u * u * abs(u).ln() if u != 0 else Decimal(0)
+
+    def sz(t):
+        return sum((1 if k % 2 == 0 else -1) * comb(2 * d, d + k) * f * f * (2 * g(t + k) - g(t + k - h) - g(t + k + h))
+                   for k in range(-d, d + 1))
+
+    z0 = sz(Decimal(0))
+    basic = z0 ** 2 + (1 - Decimal(int(j)) / mm) * sz(Decimal(int(j)) / big_s) ** 2
+    basic += sum(2 * (1 - Decimal(i) / mm) * sz(Decimal(i) / big_s) ** 2 for i in range(1, int(j)))
+    return float(z0 ** 2 * mm / basic)
+
+
+def test_flicker_pm_edf_free_of_cancellation():
+    # the direct F^2 (2 g(t) - g(t - h) - g(t + h)) loses ~F^2 eps: 2e-11 at m = 2500, 1e-8 at m = 18000;
+    # the series / near-zero forms keep double precision. m = 2500 and 2400 share one rescaled lattice
+    # (the quadratic-form path), m = 2499 alone on the record-limited one (per-point path); 1e-13 is
+    # ~500 eps, an order below the direct sum's error at these F
+    ms = np.array([2400, 2500])
+    got = edf_greenhall_many(1, 2, ms, 10_001)
+    for m, v in zip(ms, got):
+        assert v == pytest.approx(_flicker_edf_decimal(2, int(m), 10_001), rel=1e-13)
+    assert edf_greenhall(1, 2, 2499, 10_001) == pytest.approx(_flicker_edf_decimal(2, 2499, 10_001), rel=1e-13)

@@ -17,8 +17,9 @@ evaluated on the rescaled problem (same r = M / S, J_MAX terms), which is the co
 behind the paper's large-J tables. The interval of the variance is then
 ``[edf s^2 / chi2(0.975, edf), edf s^2 / chi2(0.025, edf)]``.
 
-Public: :func:`chi2_ppf`, :func:`noise_id`, :func:`noise_id_decimated`, :func:`noise_id_spread`, :func:`identify`, :func:`identify_decimated`,
-:func:`alpha_from_slope`, :func:`edf_greenhall`, :func:`confidence`, :class:`DeviationCI`.
+Public: :func:`chi2_ppf`, :func:`noise_id`, :func:`noise_id_decimated`, :func:`noise_id_spread`,
+:func:`identify`, :func:`identify_decimated`, :func:`alpha_from_slope`, :func:`edf_greenhall`,
+:func:`edf_greenhall_many`, :func:`pick_wider`, :func:`confidence`, :class:`DeviationCI`.
 """
 
 from __future__ import annotations
