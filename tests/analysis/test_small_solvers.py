@@ -2,10 +2,10 @@
 
 import numpy as np
 import pytest
-from scipy.optimize import brentq
+from scipy.optimize import brentq, minimize_scalar
 from scipy.optimize import nnls as scipy_nnls
 
-from workbench.analysis.small_solvers import nnls, root_bracket
+from workbench.analysis.small_solvers import minimize_bounded, nnls, root_bracket
 
 
 @pytest.mark.parametrize("seed", range(20))
@@ -39,3 +39,20 @@ def test_root_matches_brentq(func, lo, hi):
 def test_root_needs_a_bracket():
     with pytest.raises(ValueError):
         root_bracket(lambda t: t * t + 1.0, -1.0, 1.0)
+
+
+@pytest.mark.parametrize("func,lo,hi", [(lambda t: (t - 0.3) ** 2, -1.0, 2.0), (np.cos, 0.0, 6.0),
+                                         (lambda t: np.abs(t - 1.7) + 0.1 * t, 0.0, 4.0),
+                                         (lambda t: np.exp(t) - 3.0 * t, -2.0, 5.0),
+                                         (lambda t: t, 0.0, 1.0)])  # the minimum at an end: approached, not reached
+def test_minimize_bounded_matches_scipy(func, lo, hi):
+    ref = minimize_scalar(func, bounds=(lo, hi), method="bounded", options={"xatol": 1e-9})
+    x, fx = minimize_bounded(func, lo, hi, xtol=1e-9)
+    assert lo < x < hi
+    assert x == pytest.approx(ref.x, abs=1e-7) and fx == pytest.approx(ref.fun, abs=1e-9)
+
+
+def test_minimize_bounded_steps_around_infinite_values():
+    # a barrier (inf left of 1): the parabolic step is skipped, the golden section finds the minimum at 2
+    x, fx = minimize_bounded(lambda t: np.inf if t < 1.0 else (t - 2.0) ** 2, 0.0, 5.0, xtol=1e-8)
+    assert x == pytest.approx(2.0, abs=1e-6) and fx < 1e-10

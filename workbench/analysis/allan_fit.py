@@ -19,17 +19,20 @@ term with the white noise vanishes, so the quantization term becomes ``3 Q^2 h(t
 with ``h = 1 - 4/3 rho(x) + 1/3 rho(2x)``, ``rho`` the correlation above and
 ``x = N^2 tau / (12 Q^2)`` (:func:`quantization_shape`; h -> 1 for x >> 1, the IEEE form, and
 ~ sqrt(tau) for x << 1, where the classic model overstates the variance by up to 2x at the
-first tau). The fit iterates h with the fitted N^2 / Q^2. For the virtual sensor's
-quantizer it matches the simulated AVAR within 0.6 % at every tau (benchmarks/allan_coverage.py).
+first tau). For the virtual sensor's quantizer it matches the simulated AVAR within 0.6 % at
+every tau (benchmarks/allan_coverage.py). The shape ties Q and N: the ratio r = N^2 / Q^2 is a
+parameter of the model (N^2 = r Q^2 enforced), found by a 1-D search of the deviance over r, with
+the edges of no white noise and of h = 1 (the IEEE form, Q = 0 included) in the family
+(:class:`_Family`); the same search runs at every profile point and in every model of the selection.
 
-The model is linear in the squared coefficients theta (for a given h). Each AVAR
+The model is linear in the squared coefficients theta for a given r. Each AVAR
 point is a scaled chi-squared variable with the Greenhall EDF, so the fit maximises the gamma
 likelihood (non-negative IRLS with weights edf / model^2, the identity-link gamma GLM); its
 deviance is divided by :data:`CORRELATION` (neighbouring overlapping points share about half
 their information).
 
 Values and intervals come from the full five-term fit: a term's 95 % interval is the set of
-values whose profile deviance (the other four terms refitted, all non-negative) lies within
+values whose profile deviance (the other four terms and r refitted, all non-negative) lies within
 chi2(0.95, 1) = 3.84 of the minimum. It does not depend on which terms are reported, so
 choosing the model does not make the intervals optimistic (a rate random walk selected because
 the last octaves fluctuated up keeps an interval reaching down to the truth: the selection of
@@ -59,12 +62,27 @@ from workbench.allan_model import FLICKER_AVAR, avar_basis
 from workbench.analysis.allan_ci import DeviationCI, chi2_ppf
 from workbench.analysis.allan_report import CALSET_NAMES, AllanAnalysis  # noqa: F401 (re-exported)
 from workbench.analysis.allan_terms import TERMS
-from workbench.analysis.small_solvers import nnls, root_bracket
+from workbench.analysis.small_solvers import minimize_bounded, nnls, root_bracket
 
 FLICKER = FLICKER_AVAR  # AVAR per B^2; ADEV floor 0.664 B (workbench.allan_model)
 CORRELATION = 2.0  # overlapping AVAR points at octave taus share about half their information:
 # weighted chi-squared differences are divided by this before model comparison
 _IRLS_ITER = 30
+_IRLS_STEP = 1e-4  # change of the model AVAR, in each point's standard deviation, at which the IRLS stops
+
+
+def _nnls_warm(a: np.ndarray, b: np.ndarray, passive: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """argmin ||a x - b||, x >= 0, and its passive set: the unconstrained solution on ``passive`` (the
+    last IRLS step's set) when it satisfies the Kuhn-Tucker conditions, else :func:`nnls`."""
+    if passive is not None and passive.any() and np.all(np.isfinite(a)) and np.all(np.isfinite(b)):
+        x = np.zeros(a.shape[1])
+        x[passive] = np.linalg.lstsq(a[:, passive], b, rcond=None)[0]
+        grad = a.T @ (b - a @ x)
+        scale = np.linalg.norm(a, axis=0) * np.linalg.norm(b)
+        if np.all(x[passive] > 0) and np.all(grad[~passive] <= 1e-10 * scale[~passive]):
+            return x, passive
+    x = nnls(a, b)[0] if a.shape[1] else np.zeros(0)
+    return x, x > 0
 
 
 def basis(tau: np.ndarray, ratio: float = np.inf) -> np.ndarray:
@@ -138,85 +156,204 @@ class ChannelNoise:
         return np.sqrt(self.design(tau) @ self.theta)
 
 
-def _irls(a: np.ndarray, avar: np.ndarray, edf: np.ndarray, cols: list[int]) -> tuple[np.ndarray, np.ndarray]:
-    """Non-negative fit of avar on basis columns ``cols``, weights from the model; (theta(5,), w)."""
-    model = avar.copy()
-    theta = np.zeros(5)
-    for _ in range(_IRLS_ITER):
-        w = edf / (2.0 * np.maximum(model, 1e-300) ** 2)
-        sw = np.sqrt(w)
-        coef, _ = nnls(a[:, cols] * sw[:, None], avar * sw)
-        new = np.zeros(5)
-        new[cols] = coef
-        model = a @ new
-        done = float(np.max(np.abs(new - theta))) <= 1e-8 * float(np.max(new))
-        theta = new
-        if done or not model.max() > 0:
-            break
-    return theta, edf / (2.0 * np.maximum(model, 1e-300) ** 2)
+_X_RANGE = (1e-4, 2.0)  # x = N^2 tau_min / (12 Q^2) at the ends of the searched quantization shapes:
+# above 2 the shape h is 1 within 1e-17 at every tau (the IEEE form), below 1e-4 h ~ 0 at the first taus
+_SHAPES_PER_DECADE = 3  # log grid of the shape search, refined by Brent's method around its best point
+_LOG_R_TOL = 1e-2  # Brent's tolerance on ln(N^2 / Q^2) (the deviance is then within ~1e-3 of the 1-D minimum)
 
 
-def deviance(a: np.ndarray, avar: np.ndarray, edf: np.ndarray, theta: np.ndarray) -> float:
-    """Deviance of the model ``a @ theta`` for AVAR points ``avar`` with ``edf`` degrees of freedom.
+@dataclass(frozen=True)
+class _Fit:
+    """One model of the quantization-shape family fitted to the points: ``theta`` (5,), ``ratio`` = N^2 / Q^2
+    of its shape (inf: IEEE form), ``dev`` its deviance, ``model`` (K,) its AVAR."""
+
+    dev: float
+    theta: np.ndarray
+    ratio: float
+    model: np.ndarray
+
+
+class _Family:
+    """The five-term AVAR model of one channel with the quantization shape h(tau; r) tied to the terms.
+
+    The shape depends on r = N^2 / Q^2 (:func:`quantization_shape`), so a model with quantization and
+    white noise is ``Q^2 (3 h(tau; r) / tau^2 + r / tau) + B, K, R terms`` with r a parameter: for a
+    given r it is linear and non-negative in (Q^2, B^2, K^2, R^2), and r is found by a 1-D search (a
+    log grid of x = r tau_min / 12 over :data:`_X_RANGE` refined by Brent's method). Two more shapes
+    complete the family: :meth:`ieee`, every r above the grid's top, where h = 1 and the model is
+    the IEEE 952 one with N^2 >= r_top Q^2 (Q = 0 included: ratio inf), and :meth:`no_white`,
+    quantization without white noise (N = 0, h = 1, ratio inf). A search over r finds the family's
+    best model where the fixed point "h from the last fit's N^2 / Q^2" need not converge (the
+    deviance has several local minima in r); every profile point and every model of the
+    selection is refitted over r too, so the intervals count the shape's freedom.
+    """
+
+    def __init__(self, tau: np.ndarray, avar: np.ndarray, edf: np.ndarray) -> None:
+        self.tau, self.avar, self.edf = tau, avar, edf
+        self.plain = basis(tau)  # h = 1
+        scale = 12.0 / float(tau.min())
+        self.r_top = _X_RANGE[1] * scale
+        n = int(np.ceil(np.log10(_X_RANGE[1] / _X_RANGE[0]) * _SHAPES_PER_DECADE)) + 1
+        self.log_r = np.linspace(np.log(_X_RANGE[0] * scale), np.log(self.r_top), n)
+        self._columns: dict[float, np.ndarray] = {}
+
+    def _irls(self, cols: np.ndarray, offset: np.ndarray, start: np.ndarray,
+              cutoff: float = np.inf) -> tuple[np.ndarray, np.ndarray, float]:
+        """Non-negative c minimising the deviance of ``offset + cols @ c`` (IRLS from the weights of the
+        model ``start`` (K,)): (c, model, deviance).
+
+        Stops when the model moves by less than :data:`_IRLS_STEP` of each point's own standard
+        deviation (the deviance is then within ~K _IRLS_STEP^2 of its minimum), or when the
+        deviance, extrapolated from its last two decreases (IRLS converges linearly), stays above
+        ``cutoff``: such a model is no candidate, and its deviance is returned as it is then.
+        """
+        avar, edf = self.avar, self.edf
+        sigma = np.sqrt(2.0 / edf)  # relative standard deviation of each AVAR point
+        model = start
+        c = np.zeros(cols.shape[1])
+        passive = None
+        devs = [np.inf]
+        for _ in range(_IRLS_ITER):
+            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):  # far profile points overflow
+                sw = np.sqrt(edf) / np.maximum(model, 1e-300)
+                lhs, rhs = cols * sw[:, None], (avar - offset) * sw
+            new, passive = _nnls_warm(lhs, rhs, passive)
+            if not np.all(np.isfinite(new)):
+                break
+            new_model = offset + cols @ new
+            with np.errstate(invalid="ignore", divide="ignore"):
+                step = float(np.max(np.abs(new_model - model) / (new_model * sigma))) if new_model.min() > 0 \
+                    else np.inf
+            c, model = new, new_model
+            devs.append(deviance(model, avar, edf))
+            if step <= _IRLS_STEP or not model.max() > 0:
+                break
+            if len(devs) >= 4 and np.isfinite(devs[-3]):
+                d1, d2 = devs[-3] - devs[-2], devs[-2] - devs[-1]
+                rate = d2 / d1 if d1 > 0 else 1.0
+                if 0.0 <= rate < 0.9 and devs[-1] - d2 * rate / (1.0 - rate) > cutoff:
+                    break
+        return c, model, devs[-1]
+
+    def _linear(self, q_col: np.ndarray | None, q_fixed: float | None, n_col: np.ndarray | None,
+                n_fixed: float | None, fixed: dict[int, float], start: np.ndarray,
+                cutoff: float) -> tuple[float, float, float, np.ndarray, np.ndarray]:
+        """Fit with the quantization and white parts given as a column each (None: absent) or a fixed
+        coefficient, and terms 2-4 free unless in ``fixed``: (q, n, deviance, coefficients of 2-4, model);
+        ``cutoff`` as :meth:`_irls`."""
+        cols, offset = [], np.zeros(len(self.tau))
+        for col, value in ((q_col, q_fixed), (n_col, n_fixed)):
+            if col is not None:
+                if value is None:
+                    cols.append(col)
+                else:
+                    offset = offset + value * col
+        free = [j for j in (2, 3, 4) if j not in fixed]
+        for j in (2, 3, 4):
+            if j in fixed:
+                offset = offset + fixed[j] * self.plain[:, j]
+        cols += [self.plain[:, j] for j in free]
+        c, model, dev = self._irls(np.column_stack(cols) if cols else np.zeros((len(self.tau), 0)), offset, start,
+                                     cutoff)
+        it = iter(c)
+        q = (next(it) if q_fixed is None else q_fixed) if q_col is not None else 0.0
+        n = (next(it) if n_fixed is None else n_fixed) if n_col is not None else 0.0
+        rest = np.array([fixed[j] if j in fixed else next(it) for j in (2, 3, 4)])
+        return float(q), float(n), dev, rest, model
+
+    def shaped(self, log_r: float, fixed: dict[int, float], start: np.ndarray, cutoff: float = np.inf) -> _Fit:
+        """Best model with N^2 = r Q^2 (r = exp(log_r)) and the terms in ``fixed`` held."""
+        r = float(np.exp(log_r))
+        col = self._columns.get(log_r)
+        if col is None:
+            col = self.plain[:, 0] * quantization_shape(self.tau, r) + r * self.plain[:, 1]  # per Q^2
+            if len(self._columns) < 4 * len(self.log_r):  # the grid's columns are reused by every search
+                self._columns[log_r] = col
+        q_fixed = fixed[0] if 0 in fixed else (fixed[1] / r if 1 in fixed else None)
+        q, _, dev, rest, model = self._linear(col, q_fixed, None, None, fixed, start, cutoff)
+        return _Fit(dev, np.array([q, r * q, *rest]), r, model)
+
+    def ieee(self, fixed: dict[int, float], start: np.ndarray, cutoff: float = np.inf) -> _Fit:
+        """Best model with h = 1 and N^2 >= r_top Q^2 (N^2 = r_top Q^2 + n, n >= 0)."""
+        p = self.plain
+        if 1 in fixed and 0 not in fixed:  # N^2 held: Q^2 free up to N^2 / r_top
+            q, _, dev, rest, model = self._linear(p[:, 0], None, p[:, 1], fixed[1], fixed, start, cutoff)
+            if q > fixed[1] / self.r_top:  # the bound is active: that model is the grid's top shape
+                dev = float("inf")
+            n2 = fixed[1]
+        else:
+            q_fixed = fixed.get(0)
+            n_fixed = None if 1 not in fixed else fixed[1] - self.r_top * fixed[0]
+            if n_fixed is not None and n_fixed < 0:
+                return _Fit(float("inf"), np.zeros(5), np.inf, start)
+            q, n, dev, rest, model = self._linear(p[:, 0] + self.r_top * p[:, 1], q_fixed, p[:, 1], n_fixed, fixed,
+                                                  start, cutoff)
+            n2 = self.r_top * q + n
+        ratio = n2 / q if q > 0 and n2 > 0 else np.inf
+        return _Fit(dev, np.array([q, n2, *rest]), ratio, model)
+
+    def no_white(self, fixed: dict[int, float], start: np.ndarray, cutoff: float = np.inf) -> _Fit:
+        """Best model with quantization (h = 1) and no white noise."""
+        if fixed.get(1, 0.0) > 0:
+            return _Fit(float("inf"), np.zeros(5), np.inf, start)
+        q, _, dev, rest, model = self._linear(self.plain[:, 0], fixed.get(0), None, None, fixed, start, cutoff)
+        return _Fit(dev, np.array([q, 0.0, *rest]), np.inf, model)
+
+    def best(self, fixed: dict[int, float], start: np.ndarray, cutoff: float = np.inf) -> _Fit:
+        """The family's best model with the terms ``fixed`` {index: squared value} held (the others >= 0),
+        IRLS from the weights of the model ``start`` (K,). A deviance above ``cutoff`` may be returned
+        unconverged (an overestimate): the callers only need to know it is above."""
+        fits = [self.ieee(fixed, start, cutoff), self.no_white(fixed, start, cutoff)]
+        if fixed.get(0, 1.0) > 0 and fixed.get(1, 1.0) > 0 and not (0 in fixed and 1 in fixed):
+            grid = []
+            for lr in self.log_r:
+                grid.append(self.shaped(lr, fixed, start, min(cutoff, min(f.dev for f in fits + grid))))
+            i = int(np.argmin([f.dev for f in grid]))
+            fits += grid
+            lo, hi = self.log_r[max(i - 1, 0)], self.log_r[min(i + 1, len(self.log_r) - 1)]
+            if np.isfinite(grid[i].dev) and grid[i].dev <= min(f.dev for f in fits):
+                found: dict[float, _Fit] = {}
+
+                def dev_at(lr: float) -> float:
+                    found[lr] = self.shaped(lr, fixed, grid[i].model, cutoff)
+                    return found[lr].dev
+
+                lr, _ = minimize_bounded(dev_at, lo, hi, xtol=_LOG_R_TOL)
+                fits.append(found[lr])
+        return min(fits, key=lambda f: f.dev)
+
+
+def deviance(model: np.ndarray, avar: np.ndarray, edf: np.ndarray) -> float:
+    """Deviance of the model AVAR ``model`` (K,) for AVAR points ``avar`` with ``edf`` degrees of freedom.
 
     Each point is a scaled chi-squared variable, avar_k ~ model_k chi2(edf_k) / edf_k; minus twice
     its log-likelihood, up to a constant, is edf_k (r_k - 1 - ln r_k) with r_k = avar_k / model_k
     (the gamma deviance). Divided by :data:`CORRELATION` for the information neighbouring
-    overlapping points share. The non-negative IRLS of :func:`_irls` minimises it.
+    overlapping points share. The non-negative IRLS of :class:`_Family` minimises it.
     """
-    model = a @ theta
     if not np.all(model > 0):
         return float("inf")
     r = avar / model
     return float(np.sum(edf * (r - 1.0 - np.log(r)))) / CORRELATION
 
 
-def _profile(a: np.ndarray, avar: np.ndarray, edf: np.ndarray, k: int, t: float, start: np.ndarray,
-             design_of: Callable[[np.ndarray], np.ndarray] | None = None) -> float:
-    """Deviance of the best non-negative model with theta_k fixed at ``t`` (the other four free),
-    iterated from the weights of the model ``start`` (5,) with its k-th term set to ``t``.
-    ``design_of(theta)``: the basis when it depends on theta (the quantization shape), else ``a``."""
-    cols = [c for c in range(5) if c != k]
-    theta = start.copy()
-    theta[k] = t
-    if design_of is not None:
-        a = design_of(theta)
-    model = np.maximum(a @ theta, 1e-300)
-    for _ in range(_IRLS_ITER):
-        rest = avar - t * a[:, k]
-        with np.errstate(over="ignore", invalid="ignore"):  # far profile points overflow the weights
-            sw = np.sqrt(edf) / np.maximum(model, 1e-300)
-            lhs, rhs = a[:, cols] * sw[:, None], rest * sw
-        coef, _ = nnls(lhs, rhs)
-        new = np.zeros(5)
-        new[cols] = coef
-        new[k] = t
-        if design_of is not None:
-            a = design_of(new)
-        model = a @ new
-        done = float(np.max(np.abs(new - theta))) <= 1e-6 * float(np.max(new))
-        theta = new
-        if done:
-            break
-    return deviance(a, avar, edf, theta)
+def profile_interval(family: _Family, k: int, full: _Fit, t_cap: float, level: float = 0.95) -> tuple[float, float]:
+    """Profile-likelihood interval (lo, hi) of theta_k over the whole model family.
 
-
-def profile_interval(a: np.ndarray, avar: np.ndarray, edf: np.ndarray, k: int, full: np.ndarray, d_min: float,
-                     t_cap: float, level: float = 0.95,
-                     design_of: Callable[[np.ndarray], np.ndarray] | None = None) -> tuple[float, float]:
-    """Profile-likelihood interval (lo, hi) of theta_k over all non-negative five-term models.
-
-    The set of theta_k whose profile deviance lies within chi2(level, 1) of the global minimum
-    ``d_min`` of the full fit ``full`` (5,); independent of which model the selection picked (an
-    interval of the selected model alone would inherit the selection's optimism). ``t_cap`` is
-    where the search for the upper limit starts (it grows by 4 until the profile exceeds the
-    threshold). ``design_of`` as :func:`_profile`.
+    The set of theta_k whose profile deviance (the other terms and the quantization shape refitted,
+    all terms non-negative) lies within chi2(level, 1) of the global minimum of the full fit
+    ``full``; independent of which model the selection picked (an interval of the selected model
+    alone would inherit the selection's optimism). ``t_cap`` is where the search for the upper
+    limit starts (it grows by 4 until the profile exceeds the threshold).
     """
-    limit = d_min + chi2_ppf(level, 1)
-    t_hat = float(full[k])
+    limit = full.dev + chi2_ppf(level, 1)
+    t_hat = float(full.theta[k])
+    seen: dict[float, float] = {}
 
     def excess(t: float) -> float:
-        return _profile(a, avar, edf, k, t, full, design_of) - limit
+        if t not in seen:
+            seen[t] = family.best({k: t}, full.model, limit + 1.0).dev - limit
+        return seen[t]
 
     top = max(t_cap, t_hat * 2.0, 1e-300)
     for _ in range(60):
@@ -232,25 +369,23 @@ def profile_interval(a: np.ndarray, avar: np.ndarray, edf: np.ndarray, k: int, f
     return lo, hi
 
 
-def _select(a: np.ndarray, avar: np.ndarray, edf: np.ndarray, full: np.ndarray) -> list[int]:
+def _select(family: _Family, full: _Fit) -> list[int]:
     """Terms the data show: backward elimination from the full model by likelihood ratio.
 
     Starting from the terms of the full fit that are non-zero, the term whose removal (the others
-    refitted) raises the deviance least is dropped while that rise is below chi2(0.95, 1) = 3.84;
-    the remaining terms are "observed". At least one term always stays.
+    and the quantization shape refitted) raises the deviance least is dropped while that rise is
+    below chi2(0.95, 1) = 3.84; the remaining terms are "observed". At least one term always stays.
     """
-    cols = [k for k in range(5) if full[k] > 0]
-    d_cur = deviance(a, avar, edf, full)
+    cols = [k for k in range(5) if full.theta[k] > 0]
+    dropped = {k: 0.0 for k in range(5) if k not in cols}
+    d_cur = full.dev
     while len(cols) > 1:
-        rises = []
-        for k in cols:
-            rest = [c for c in cols if c != k]
-            theta, _ = _irls(a, avar, edf, rest)
-            rises.append((deviance(a, avar, edf, theta) - d_cur, k))
+        rises = [(family.best({**dropped, k: 0.0}, full.model, d_cur + 4.0).dev - d_cur, k) for k in cols]
         rise, k = min(rises)
         if rise >= chi2_ppf(0.95, 1):
             break
         cols.remove(k)
+        dropped[k] = 0.0
         d_cur += rise
     return cols
 
@@ -274,52 +409,28 @@ def fit_channel(tau: np.ndarray, dev: np.ndarray, edf: np.ndarray, hi: np.ndarra
     tau, avar, edf, hi = tau[ok], dev[ok] ** 2, edf[ok], hi[ok]
     if len(tau) == 0:
         raise ValueError(f"{column}: no noise model fits the Allan curve")
-    a, full, ratio = _fit_full(tau, avar, edf)
-    d_min = deviance(a, avar, edf, full)
-    # the quantization shape depends on N^2 / Q^2: every profile refits it with the terms
-    shaped = (lambda th: basis(tau, th[1] / th[0] if th[0] > 0 and th[1] > 0 else np.inf)) \
-        if np.isfinite(ratio) else None
-    plain = basis(tau)  # the IEEE 952 basis (h = 1) of the search starts
+    family = _Family(tau, avar, edf)
+    full = family.best({}, avar)
+    ratio = full.ratio
+    plain = family.plain  # the IEEE 952 basis (h = 1) of the search starts
     intervals = []
     for k in range(5):
         # the smallest single-point 97.5 % bound: a start for the search of the upper limit
         cap = float(np.min(hi ** 2 / plain[:, k]))
-        intervals.append(profile_interval(a, avar, edf, k, full, d_min, cap, design_of=shaped))
-    cols = _select(a, avar, edf, full)
-    theta = np.where(np.isin(np.arange(5), cols), full, 0.0)
-    w = edf / (2.0 * (a @ full) ** 2)
-    chi2_red = float(np.sum(w * (avar - a @ full) ** 2) / max(len(tau) - len(cols), 1))
+        intervals.append(profile_interval(family, k, full, cap))
+    cols = _select(family, full)
+    theta = np.where(np.isin(np.arange(5), cols), full.theta, 0.0)
+    w = edf / (2.0 * full.model ** 2)
+    chi2_red = float(np.sum(w * (avar - full.model) ** 2) / max(len(tau) - len(cols), 1))
     terms: dict[str, NoiseTerm] = {}
     for k, name in enumerate(TERMS):
         lo, up = intervals[k]
         if k in cols:
-            terms[name] = NoiseTerm(name, float(np.sqrt(full[k])), (float(np.sqrt(lo)), float(np.sqrt(up))), True,
+            terms[name] = NoiseTerm(name, float(np.sqrt(full.theta[k])), (float(np.sqrt(lo)), float(np.sqrt(up))), True,
                                     _dominant_range(k, theta, float(tau.min()), float(tau.max()), ratio))
         else:
             terms[name] = NoiseTerm(name, float("nan"), (0.0, float(np.sqrt(up))), False, None)
     return ChannelNoise(column, terms, theta, chi2_red, read_offs(tau, np.sqrt(avar)), ratio)
-
-
-def _fit_full(tau: np.ndarray, avar: np.ndarray, edf: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-    """The full five-term fit with the quantization shape iterated to the fitted N^2 / Q^2:
-    (basis, theta (5,), ratio); ratio is inf when the fit has no quantization or no white noise."""
-    ratio = np.inf
-    a = basis(tau)
-    full, _ = _irls(a, avar, edf, list(range(5)))
-    for _ in range(20):
-        if not (full[0] > 0 and full[1] > 0):
-            break
-        new = full[1] / full[0]
-        a = basis(tau, new)
-        full, _ = _irls(a, avar, edf, list(range(5)))
-        done = np.isfinite(ratio) and abs(new - ratio) <= 1e-4 * ratio
-        ratio = new
-        if done:
-            break
-    if not (full[0] > 0 and full[1] > 0):
-        ratio, a = np.inf, basis(tau)
-        full, _ = _irls(a, avar, edf, list(range(5)))
-    return a, full, ratio
 
 
 def read_offs(tau: np.ndarray, dev: np.ndarray) -> dict[str, float]:
