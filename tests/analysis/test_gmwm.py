@@ -56,12 +56,12 @@ def test_gauss_markov_wv_is_stable_for_slow_processes():
 
 
 def test_flicker_ladder_is_flat_at_the_ieee_floor():
-    # AVAR = 2 WV flat at FLICKER_AVAR B^2 (ADEV 0.664 B) within 1 % from LADDER_FLAT samples on,
-    # falling below (band-limited) toward one sample
+    # AVAR = 2 WV flat at FLICKER_AVAR B^2 (ADEV 0.664 B) within 1 % from one-sample averages (Haar
+    # scale 2 = LADDER_FLAT) on, as the virtual lab's generator (flat within +0.3/-0.6 % from one sample)
     tau = 2.0 ** np.arange(1, 28)
     avar = 2 * wv_theory(("fl",), np.array([1.0]), tau, DT) / FLICKER_AVAR
-    assert np.all(np.abs(avar[tau >= LADDER_FLAT] - 1) < 0.01), avar
-    assert np.all(np.diff(avar[tau <= LADDER_FLAT]) > 0) and 0.4 < avar[0] < 0.6
+    assert LADDER_FLAT == 2
+    assert np.all(np.abs(avar - 1) < 0.01), avar
     assert len(flicker_ladder(DT)[0]) < 25
 
 

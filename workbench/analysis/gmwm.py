@@ -22,7 +22,7 @@ name       parameters (SI)              Haar WV at scale tau (samples)
 (WV formulas as documented for the R packages gmwm / wv; each is checked against the Allan
 variance of simulated records in tests/analysis/test_gmwm.py.) Bias instability, a flicker
 process, is a sum of Gauss-Markov processes either way: ``fl`` is a fixed ladder of them
-(:func:`flicker_ladder`, two per decade, one amplitude B: the IEEE 952 term itself, and a
+(:func:`flicker_ladder`, three per decade, one amplitude B: the IEEE 952 term itself, and a
 filter-ready Gauss-Markov bank), ``k*gm`` free terms as the GMWM literature does, B then read
 off the fitted sum as peak ADEV / 0.664 (its plateau; 2-3x high where the floor barely shows).
 
@@ -68,9 +68,9 @@ from workbench.errors import AnalysisError
 PROCESSES = ("wn", "qn", "fl", "rw", "dr", "gm")
 PARAMS = {"wn": ("white",), "qn": ("quantization",), "fl": ("bias_instability",), "rw": ("rrw",),
           "dr": ("rate_ramp",), "gm": ("sigma", "tau_c")}
-LADDER_PER_DECADE = 2  # Gauss-Markov times of the flicker ladder per decade
-LADDER_SPAN = (10.0 / 3.0, 1e10)  # its times, in samples (band-limited at 10 samples: corner 3 / (2 pi 10 dt))
-LADDER_FLAT = 64  # shortest Haar scale (samples) of the flat WV
+LADDER_PER_DECADE = 3  # Gauss-Markov times of the flicker ladder per decade
+LADDER_SPAN = (0.25, 1e10)  # its times, in samples
+LADDER_FLAT = 2  # shortest Haar scale (samples) of the flat WV: the AVAR of one-sample averages
 MIN_TERMS_PER_SCALE = 8  # a scale is used when its Allan average spans <= N / 8 samples: m <= N / 8
 MIN_BOOTSTRAP = 50  # simulated records at least: with fewer the 2.5 % and 97.5 % quantiles (and V) come out narrow
 
@@ -123,10 +123,9 @@ def flicker_ladder(dt: float) -> tuple[np.ndarray, np.ndarray]:
     """The Gauss-Markov ladder of the ``fl`` process at sample period ``dt`` s: times (L,) s,
     :data:`LADDER_PER_DECADE` per decade over :data:`LADDER_SPAN` samples, and variances (L,) per
     B^2, non-negative least squares making the Haar WV FLICKER_AVAR / 2 (ADEV 0.664 B) at
-    :data:`LADDER_FLAT` .. 2^27 samples (flat within 1 %; modes of zero variance dropped). Like
-    a sensor's flicker, the floor is band-limited (here at 10 samples, as the virtual lab's
-    :func:`workbench.sim.noise.flicker_design`): its AVAR falls below 32-sample averages, to
-    0.46 of the floor at one sample (the virtual lab's: 0.44), where white noise dominates."""
+    :data:`LADDER_FLAT` .. 2^27 samples (flat within +0.7/-1.0 %; modes of zero variance dropped):
+    flat from one-sample averages on, as the virtual lab's :func:`workbench.sim.noise.flicker_design`
+    (+0.3/-0.6 %)."""
     from scipy.optimize import nnls
 
     lo, hi = (np.log10(v) for v in LADDER_SPAN)
