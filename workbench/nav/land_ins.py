@@ -56,7 +56,7 @@ from workbench.nav.land_ins_model import (  # noqa: F401  (re-exported: the mode
     A_, BA, BG, BW, LA, N_STATES, P_, SA, SG, STATE_COUNTS, V_, GradeErrors, LandInsConfig, discretise,
     error_dynamics, grade_errors, nhc_jacobian, scale_columns)
 from workbench.nav import nav_results
-from workbench.nav.strapdown import sequential_update, skew
+from workbench.nav.strapdown import integrated_noise_cross, sequential_update, skew
 
 
 def cep(p_nn: np.ndarray, draws: int = 200_000, seed: int = 0) -> float:
@@ -207,10 +207,9 @@ def _zarupt_cross(c_bn: np.ndarray, f_n: np.ndarray, grade: GradeErrors, cfg: La
     the heading from, and its heading sigma would come out up to √2 small (measured before: 1.3-1.5x).
     The ZUPT's own noise is independent of the state.
     """
-    arw = c_bn @ np.diag(grade.gyro_white ** 2) @ c_bn.T
     m = np.zeros((N_STATES, 6))
-    m[A_, 3:] = arw
-    m[V_, 3:] = -skew(f_n) @ arw * (min(cfg.zarupt_window_s, cfg.update_s) / 2.0)
+    m[A_, 3:], m[V_, 3:], _ = integrated_noise_cross(c_bn @ np.diag(grade.gyro_white ** 2) @ c_bn.T, f_n,
+                                                     min(cfg.zarupt_window_s, cfg.update_s))
     return m[:nst]
 
 

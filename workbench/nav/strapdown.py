@@ -77,6 +77,20 @@ def skew(v: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
+def integrated_noise_cross(q: np.ndarray, f_n: np.ndarray, window_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Covariances of the attitude, velocity and position errors with a measurement noise ``v`` made of the
+    gyro white noise the attitude has just integrated over the last ``window_s`` s (a ZARUPT's gyro mean).
+
+    ``q`` (3, k) = ``E[dθ vᵀ]`` (rad times the unit of ``v``), the attitude error's share, NED; ``f_n`` (3,)
+    NED specific force, m/s². The attitude error drives the velocity error through the tilt,
+    ``dv̇ = -[f_n×] dθ``, and the velocity the position; with the noise spread evenly over the window:
+    ``E[dv vᵀ] = -[f_n×] q window_s / 2`` (m/s) and ``E[dp vᵀ] = -[f_n×] q window_s² / 6`` (m). The
+    Coriolis and Earth-rate terms change these by ``~|w_ie| window_s`` (1e-4 for 1 s), left out.
+    """
+    tilt = -skew(f_n) @ q
+    return q, tilt * (window_s / 2.0), tilt * (window_s ** 2 / 6.0)
+
+
 def coarse_level(accel: np.ndarray) -> tuple[float, float]:
     """Roll and pitch (rad) from the mean specific force (n, 3) m/s^2 of a static unit, body frame.
 

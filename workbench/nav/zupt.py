@@ -55,8 +55,8 @@ from workbench.earth import earth_rate_ned, gravity_ned
 from workbench.errors import AnalysisError
 from workbench.nav.compensate import ImuSamples, ProcessNoise
 from workbench.nav import nav_results
-from workbench.nav.strapdown import (BlockPropagator, coarse_level, euler_rph, from_rph, sequential_update, skew,
-                                     van_loan, with_previous)
+from workbench.nav.strapdown import (BlockPropagator, coarse_level, euler_rph, from_rph, integrated_noise_cross,
+                                     sequential_update, skew, van_loan, with_previous)
 from workbench.units import G0
 
 N_STATES = 15
@@ -245,17 +245,12 @@ def _zarupt_cross(c: np.ndarray, f_n: np.ndarray, gyro_white: np.ndarray, window
 
     The ZARUPT (rows ``H = [.., -Cᵀ[w_ie×], .., -I]``) sees ``v = -n̄``, the mean of the body gyro white
     noise ``n`` (density ``gyro_white`` (3,) rad/√s) over the ``window_s`` s before the correction. The
-    same samples drove the attitude error, ``dθ̇ = -C n`` (``c`` body-to-NED over the window), and
-    through the tilt the velocity, ``dv̇ = -[f_n×] dθ`` (``f_n`` NED specific force, m/s²), and the
-    position. With ``q = C diag(gyro_white²)``: ``E[dθ vᵀ] = q``, ``E[dv vᵀ] = -[f_n×] q window_s / 2``,
-    ``E[dp vᵀ] = -[f_n×] q window_s² / 6``; the Coriolis and Earth-rate terms of F change these by
-    ``~|w_ie| window_s`` (1e-4 for 1 s), left out.
+    same samples drove the attitude error, ``dθ̇ = -C n`` (``c`` body-to-NED over the window), so
+    ``E[dθ vᵀ] = C diag(gyro_white²)``, and through the tilt the velocity and the position
+    (:func:`workbench.nav.strapdown.integrated_noise_cross`; ``f_n`` NED specific force, m/s²).
     """
-    q = c @ np.diag(np.asarray(gyro_white, float) ** 2)
     m = np.zeros((N_STATES, 3))
-    m[A] = q
-    m[V] = -skew(f_n) @ q * (window_s / 2.0)
-    m[P] = -skew(f_n) @ q * (window_s ** 2 / 6.0)
+    m[A], m[V], m[P] = integrated_noise_cross(c @ np.diag(np.asarray(gyro_white, float) ** 2), f_n, window_s)
     return m
 
 
