@@ -4,6 +4,7 @@
 - :func:`show_error` / :func:`guarded` — a :class:`WorkbenchError` as a readable ``st.error``;
 - :func:`lab` / :func:`lab_array` — an SI value (± sigma) in a lab unit, through ``workbench.units``;
 - :func:`lab_label` — a snake-case name with a unit suffix for people (``dwell_s`` -> ``dwell (s)``);
+- :func:`plain_field` — a labelled value typed by a user (a serial), shown whole and never as markup;
 - :func:`format_duration`, :func:`page_link`.
 """
 
@@ -95,6 +96,14 @@ def lab_label(name: str) -> str:
         if name.endswith(suffix) and len(name) > len(suffix):
             return f"{name[:-len(suffix)].replace('_', ' ')} ({unit})"
     return name.replace("_", " ")
+
+
+def plain_field(container: Any, label: str, value: str) -> None:
+    """``label`` over ``value`` in ``container`` (a column or ``st``), for values a user typed (a unit's serial,
+    a procedure name from a manifest): the whole value, wrapped, never truncated as ``st.metric`` does and
+    never parsed as Markdown or HTML (``st.metric`` parses its value)."""
+    container.caption(label)
+    container.text(value, wrap=True, width="stretch")
 
 
 def format_duration(seconds: float) -> str:

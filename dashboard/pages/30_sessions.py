@@ -191,8 +191,8 @@ with tab_browse:
         st.stop()
 
     c1, c2, c3, c4 = st.columns([3, 2, 1.2, 1.6])
-    c1.metric("Unit", f"{session.unit.serial}")
-    c2.metric("Procedure", session.procedure or "—")
+    ui.plain_field(c1, "Unit", session.unit.serial)  # a user's serial: whole, never as markup
+    ui.plain_field(c2, "Procedure", session.procedure or "—")
     c3.metric("Samples", f"{len(session.samples):,}")
     c4.metric("Duration", ui.format_duration(float(session.samples["t"].iloc[-1] - session.samples["t"].iloc[0])
                                                  if len(session.samples) else 0.0))

@@ -329,7 +329,7 @@ def _imports(db_tmp: Path) -> list[Path]:
 def test_sessions_browse_steps_and_plots(stored_session):
     at = page("30_sessions.py")
     assert not at.exception and not at.error
-    assert at.metric[0].value == "DASH-001" and at.metric[2].value == "200"
+    assert texts(at, "text")[:2] == ["DASH-001", "multiposition"] and at.metric[0].value == "200"
     steps = at.dataframe[0].value
     # 100 samples at 10 Hz: t_start..t_end = first sample .. last sample + half a sample period = 9.95 s
     assert list(steps["kind"]) == ["static", "static"] and list(steps["duration (s)"]) == [9.95, 9.95]
@@ -338,6 +338,25 @@ def test_sessions_browse_steps_and_plots(stored_session):
     assert any("accel (body frame)" in c.value for c in at.caption)
     at.selectbox(key="sess.pick").select("(type a folder)").run()
     assert texts(at, "info") == ["Pick a session above, or type its folder."]  # sessions exist: not 'No sessions yet.'
+
+
+def test_sessions_long_serial_shown_whole_as_plain_text(seeded_db, tmp_path):
+    """A serial is user input: a long one is shown whole (st.metric cuts it with an ellipsis) and markup in it
+    stays text (st.metric would render the bold and the link)."""
+    from dataclasses import replace
+
+    from tests.dashboard.conftest import make_session
+    from workbench.session import write_session
+    from workbench.values import Unit
+
+    serial = "MARG-**MPU6050**+HMC5883L-<b>board</b>-[7](http://x.invalid)-2026-12-02-rev-C-000123456789"
+    session = replace(make_session(), unit=Unit(serial, "test-imu"))
+    folder = write_session(session, tmp_path / "long")
+    seeded_db.add_session(session.id, serial, "test-imu", "multiposition", str(folder), n_steps=2)
+    at = page("30_sessions.py")
+    assert not at.exception and not at.error
+    assert texts(at, "text")[0] == serial
+    assert all(m.label != "Unit" for m in at.metric)
 
 
 def test_sessions_bad_folder_is_readable(seeded_db, tmp_path):
