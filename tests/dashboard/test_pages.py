@@ -376,7 +376,7 @@ def test_sessions_import_through_profile(seeded_db, tmp_path):
     assert len(sessions) == 1 and sessions[0].path == str(folder) and sessions[0].n_steps == 2
     # the Browse tab shows the session just imported, without picking it
     assert at.selectbox(key="sess.pick").value.endswith(sessions[0].id[:8])
-    assert at.metric[0].value == "IMP-7"
+    assert texts(at, "text")[0] == "IMP-7"
 
 
 def test_sessions_import_not_a_recording_keeps_nothing(seeded_db, tmp_path):
