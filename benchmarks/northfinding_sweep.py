@@ -42,9 +42,10 @@ def white_only(spec):
 
 
 def run(proc, spec, seed, **options):
-    """Simulate and analyse one procedure; returns the NorthFinding payload."""
+    """Simulate one procedure and find north with the grade ``spec`` itself (a modified grade has no name the
+    procedure's ``grade`` option could take); returns the NorthFinding."""
     session, _ = simulate(proc.sequence(spec, **{**proc.DEFAULTS, **options}), spec, seed=seed)
-    return proc.analyze(session, grade=spec).payload
+    return nfm.find_north(session, proc.NAME, settle_s=float(session.options.get("settle_s", 2.0)), grade=spec)
 
 
 def pooled(results):

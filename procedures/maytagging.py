@@ -48,14 +48,15 @@ APPLIES_LATITUDE = np.radians(45.0)  # rad, reference latitude of the applicabil
 def applies(spec) -> bool:
     """True when the grade's gyros resolve the Earth rate: pair 1-sigma < 0.1 rad at 45° with the default dwell.
 
-    Uses the grade's noise terms (ADEV at the dwell, IEEE 952) of its first two sensing axes.
+    Uses the grade's noise terms (ADEV at the dwell with the turn's dead time, IEEE 952) of its first two
+    sensing axes.
     """
     g = spec.specs.get("gyro")
     if g is None:
         return False
     nz = g.noise
     adev = adev_model(DEFAULTS["dwell_s"] - DEFAULTS["settle_s"], nz.white, nz.bias_instability, nz.rrw,
-                      nz.quantization)
+                      nz.quantization, spacing=DEFAULTS["dwell_s"] + np.pi / Index(np.pi).index_rate)
     axes = list(g.sensing_axes)[:2]
     sigma = pair_azimuth_sigma(adev[axes[0]], APPLIES_LATITUDE, adev[axes[-1]] if len(axes) > 1 else None,
                                None if len(axes) > 1 else np.pi / 2)

@@ -7,6 +7,10 @@
 
 ``sigma²(tau) = 3 Q²/tau² + N²/tau + (2 ln2/pi) B² + K² tau/3 + R² tau²/2``
 (IEEE Std 952-1997).
+
+:func:`dead_time_variance` is the same model for two averages that are not adjacent (a table
+turn between them): half the variance of their difference, the Allan variance times Barnes'
+bias function ``B2(spacing / tau)``.
 """
 
 from __future__ import annotations
@@ -33,3 +37,40 @@ def allan_variance(tau, white=0.0, bias_instability=0.0, rrw=0.0, quantization=0
 def allan_deviation(tau, white=0.0, bias_instability=0.0, rrw=0.0, quantization=0.0, ramp=0.0) -> np.ndarray:
     """Allan deviation (the square root of :func:`allan_variance`)."""
     return np.sqrt(allan_variance(tau, white, bias_instability, rrw, quantization, ramp))
+
+
+def _phase_variogram(h: np.ndarray, white, bias_instability, rrw, quantization) -> np.ndarray:
+    """Generalised variogram ``E[(x(t+h) - x(t))²]`` of the phase (time integral of the signal) at lag ``h`` (s).
+
+    Defined up to an even quadratic in ``h`` (which second differences cancel): white ``N² h``,
+    flicker ``-(B²/pi) h² ln h``, rate random walk ``-K² h³/6``, quantization (white phase)
+    ``2 Q²`` at ``h > 0``. Each is the one whose Allan variance ``(4 V(tau) - V(2 tau)) / (2 tau²)``
+    is the IEEE 952 term.
+    """
+    h = np.abs(np.asarray(h, float))
+    pos = h > 0
+    log_h = np.log(np.where(pos, h, 1.0))
+    return (np.asarray(white, float) ** 2 * h - np.asarray(bias_instability, float) ** 2 / np.pi * h ** 2 * log_h
+            - np.asarray(rrw, float) ** 2 * h ** 3 / 6.0 + np.where(pos, 2.0 * np.asarray(quantization, float) ** 2, 0.0))
+
+
+def dead_time_variance(tau, spacing, white=0.0, bias_instability=0.0, rrw=0.0, quantization=0.0,
+                       ramp=0.0) -> np.ndarray:
+    """Half the variance of the difference of two ``tau``-s averages whose starts are ``spacing`` s apart.
+
+    ``(2 V(tau) + 2 V(T) - V(T + tau) - V(T - tau)) / (2 tau²)`` with ``V`` the phase variogram
+    (:func:`_phase_variogram`) and ``T = spacing >= tau``, plus ``R² T²/2`` for a rate ramp. At
+    ``spacing = tau`` it is :func:`allan_variance`; a dead time leaves white noise unchanged and
+    raises flicker and random walk (Barnes' B2: ``(3r - 1)/2`` for random walk at ``r = T/tau``).
+    Units as :func:`allan_variance`; terms broadcast against ``tau``.
+    """
+    tau, spacing = np.asarray(tau, float), np.asarray(spacing, float)
+    if np.any(spacing < tau * (1.0 - 1e-12)):
+        raise ValueError("dead_time_variance: the averages overlap (spacing < tau)")
+    gap = np.maximum(spacing - tau, 0.0)
+
+    def v(h):
+        return _phase_variogram(h, white, bias_instability, rrw, quantization)
+
+    second = 2.0 * v(tau) + 2.0 * v(spacing) - v(spacing + tau) - v(gap)
+    return second / (2.0 * tau ** 2) + np.asarray(ramp, float) ** 2 * spacing ** 2 / 2.0

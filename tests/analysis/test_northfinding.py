@@ -41,10 +41,11 @@ def _body_rate(angle: np.ndarray, table_rate: np.ndarray, az0: float, mount: np.
 
 def synth_session(angles_deg, dwell_s=60.0, fs=4.0, seed=0, white=NOISE.white, bi=np.zeros(3), rrw=np.zeros(3),
                   bias=(1e-4, -8e-5, 2e-3), drift=(0.0, 0.0, 0.0), az0_deg=102.0, mount="z-down",
-                  encoder_offsets_deg=None, carousel=None, lat_deg=40.8) -> Session:
-    """An in-memory session of static positions (contiguous, no moves) or one carousel step.
+                  encoder_offsets_deg=None, carousel=None, lat_deg=40.8, move_s=0.0) -> Session:
+    """An in-memory session of static positions (contiguous unless ``move_s``) or one carousel step.
 
     ``carousel`` = (rate rad/s, laps) replaces the positions. Gyro = truth + bias + drift t + noise.
+    ``move_s`` s between positions are not recorded (a table that moves unrecorded); the noise runs on.
     """
     m = mount_matrix(mount)
     proc = NoiseProcess(np.asarray(white, float), np.asarray(bi, float), np.asarray(rrw, float), 1.0 / fs, seed)
@@ -56,6 +57,9 @@ def synth_session(angles_deg, dwell_s=60.0, fs=4.0, seed=0, white=NOISE.white, b
         plan = [(0.0, rate, laps * 2 * np.pi / abs(rate))]
     enc = np.zeros(len(plan)) if encoder_offsets_deg is None else np.radians(encoder_offsets_deg)
     for k, (a0, rate, dur) in enumerate(plan):
+        if k and move_s:
+            proc.generate(int(round(move_s * fs)))
+            t0 += move_s
         n = int(round(dur * fs))
         t = t0 + np.arange(n) / fs
         ang = a0 + rate * (t - t0)
@@ -174,6 +178,25 @@ def test_maytag_bias_instability_matches_allan_theory_and_thesis_repeatability()
     table = nfm.sequence_table(runs)
     assert [row["sequence"] for row in table] == [str(i) for i in range(1, 8)]
     assert max(abs(row["distance_mrad"] - 0) for row in table) > 0
+
+
+def test_maytag_theory_counts_the_dead_time_of_the_turn():
+    """With 120 s between positions the pair's two 58-s averages start 180 s apart: flicker and random walk
+    decorrelate over the gap, and the per-pair std follows the Allan variance with that dead time (1.27-1.30x
+    the adjacent-average theory for this grade). 280 pairs: std known to ~4.2 %; 12 % is ~3 sigma."""
+    runs, adjacent = [], []
+    adev = th.adev_model(58.0, NOISE.white, NOISE.bias_instability, NOISE.rrw)
+    for k, seed in enumerate(range(300, 307)):
+        offset = 90.0 * (k >= 4)
+        s = synth_session(maytag_angles(40, offset), fs=10.0, seed=seed, bi=NOISE.bias_instability,
+                          rrw=NOISE.rrw, move_s=120.0)
+        runs.append(nfm.find_north(s, "maytagging", grade=CVG))
+        adjacent.append(th.pair_azimuth_sigma(adev[0], LAT, adev[1], np.radians(102.0 + offset)))
+    assert all(r.theory["spacing"] == pytest.approx(180.0, abs=0.2) for r in runs)
+    dev = np.concatenate([nfm.angle_diff(r.unit_azimuth, r.true_azimuth) for r in runs])
+    theory = np.sqrt(np.mean([r.theory["allan_unit_sigma"] ** 2 for r in runs]))
+    assert np.std(dev) == pytest.approx(theory, rel=0.12)
+    assert np.std(dev) > 1.12 * np.sqrt(np.mean(np.square(adjacent)))  # the adjacent theory misses it
 
 
 def test_theory_from_the_data_when_no_grade_is_known():

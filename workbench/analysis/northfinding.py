@@ -186,21 +186,26 @@ def _data_adev(series: np.ndarray, rate_hz: float, tau: float, where: str) -> np
 
 def _theory(method: str, nf_parts: dict, noise: NoiseTerms | None, series_fn, session: Session,
             geom: AxisGeometry) -> dict:
-    """Theoretical per-unit 1-sigma (rad) from ARW alone and from the ADEV at the unit's averaging time."""
+    """Theoretical per-unit 1-sigma (rad) from ARW alone and from the ADEV at the unit's averaging time.
+
+    A maytag pair's ``nf_parts["spacing"]`` (s between the starts of its two averages) makes the
+    grade's ADEV the one with that dead time; the data's own ADEV (no noise model) has none.
+    """
     from workbench.analysis import northfinding_theory as th
 
     lat = session.site.latitude
     hz = np.flatnonzero(geom.horizontal)
     tau = nf_parts["tau"]
     if noise is not None:
-        adev = th.adev_model(tau, noise.arw, noise.bias_instability, noise.rrw, noise.quantization)
+        adev = th.adev_model(tau, noise.arw, noise.bias_instability, noise.rrw, noise.quantization,
+                             spacing=nf_parts.get("spacing"))
         white = noise.arw / np.sqrt(tau)
         source = noise.source
     else:
         adev = _data_adev(series_fn(), session.sample_rate_hz, tau, session.name)
         white = np.full(3, np.nan)  # no ARW without a noise model: not observed
         source = f"data: overlapping ADEV at {tau:.1f} s of the Earth-rate-free series"
-    out = {"source": source, "tau": float(tau), "adev_at_dwell": adev}
+    out = {"source": source, "tau": float(tau), "spacing": float(nf_parts.get("spacing", tau)), "adev_at_dwell": adev}
     for key, sig in (("arw_unit_sigma", white), ("allan_unit_sigma", adev)):
         if not np.all(np.isfinite(sig[hz])):
             out[key] = float("nan")
@@ -234,7 +239,14 @@ def _maytagging(session, obs, geom, lat, drift, where, index_tol, pairs, **_) ->
     d = maytag(obs, geom, lat, index_tol, drift, where, pairs)
     return _MethodFit(d.fit, "pair", d.pair_azimuth, d.pair_time, d.azimuth, d, d.ambiguous,
                       azimuth_sigma=d.azimuth_sigma,
-                      parts={"home_azimuth": float(d.azimuth + obs.angle[0])}, warnings=tuple(d.warnings))
+                      parts={"home_azimuth": float(d.azimuth + obs.angle[0]), "spacing": _pair_spacing(obs)},
+                      warnings=tuple(d.warnings))
+
+
+def _pair_spacing(obs) -> float:
+    """Median time (s) between consecutive static positions: how far apart a pair's two averages start."""
+    t = np.sort(obs.t)
+    return float(max(np.median(np.diff(t)), np.mean(obs.duration))) if len(t) > 1 else float(np.mean(obs.duration))
 
 
 def _redundant(session, obs, geom, lat, drift, where, positions_per_turn, bias, **_) -> _MethodFit:

@@ -50,7 +50,7 @@ def to_result(nf: NorthFinding) -> tuple[dict, list[str]]:
         "one_axis_ambiguous": nf.ambiguous,
         "theory": {"arw_pair_sigma_mrad": _json_num(th["arw_unit_sigma"] * 1e3),
                    "allan_pair_sigma_mrad": _json_num(th["allan_unit_sigma"] * 1e3),
-                   "source": th["source"], "averaging_time_s": th["tau"],
+                   "source": th["source"], "averaging_time_s": th["tau"], "pair_spacing_s": th["spacing"],
                    "adev_at_dwell": _json_num(th["adev_at_dwell"])},
     }
     if nf.azimuth_error is not None:
@@ -64,7 +64,9 @@ def to_result(nf: NorthFinding) -> tuple[dict, list[str]]:
         f"azimuth of body x at table zero: {res['azimuth_deg']:.4f} ± {np.degrees(nf.azimuth_sigma):.2g}° (1σ = "
         f"{nf.azimuth_sigma * 1e3:.3g} mrad, {len(nf.unit_azimuth)} {nf.units}s)",
         f"per-{nf.units} std: {nf.unit_std * 1e3:.3g} mrad; theory {th['arw_unit_sigma'] * 1e3:.3g} mrad (ARW only), "
-        f"{th['allan_unit_sigma'] * 1e3:.3g} mrad (ADEV at {th['tau']:.0f} s; {th['source']})",
+        f"{th['allan_unit_sigma'] * 1e3:.3g} mrad (ADEV at {th['tau']:.0f} s"
+        + (f", the averages {th['spacing']:.1f} s apart" if th["spacing"] > th["tau"] * 1.001 else "")
+        + f"; {th['source']})",
         f"horizontal Earth rate: {fmt(nf.earth_rate_amplitude, 'deg/h')} "
         f"(Ω_e cos lat = {fmt(nf.expected_amplitude, 'deg/h')})",
         "gyro bias: " + ", ".join(f"{a} {fmt(b, 'deg/h')}" for a, b in zip("xyz", nf.gyro_bias)),

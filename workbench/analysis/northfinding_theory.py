@@ -5,7 +5,8 @@
   scale-factor stability allowed for a target accuracy at a latitude;
 * the noise-limited 1-sigma of one maytag pair from the Allan deviation at the averaging
   time ``T``: the pair difference of two adjacent T-averages has variance ``2 sigma_A(T)^2``
-  (definition of the Allan variance), so ``(m1 - m2) / 2`` has ``sigma_A / sqrt(2)`` and the
+  (definition of the Allan variance; with the turn between them, the Allan variance with that
+  dead time, Barnes' B2), so ``(m1 - m2) / 2`` has ``sigma_A / sqrt(2)`` and the
   azimuth ``sigma_A(T) / (sqrt(2) Omega_e cos lat)``; with two axes of different noise
   ``sigma^2 = (sin^2 psi sigma_x^2 + cos^2 psi sigma_y^2) / (2 Omega_N^2)`` (eq. 4.6
   linearised), with one axis (eq. 4.3) ``sigma_x / (sqrt(2) Omega_N |sin psi|)``;
@@ -26,7 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from workbench.allan_model import FLICKER_AVAR, allan_deviation  # noqa: F401  (FLICKER_AVAR re-exported)
+from workbench.allan_model import FLICKER_AVAR, allan_deviation, dead_time_variance  # noqa: F401  (FLICKER_AVAR re-exported)
 from workbench.earth import EARTH_RATE
 from workbench.errors import AnalysisError
 
@@ -75,14 +76,20 @@ def scale_stability_requirement(accuracy: float, latitude: float, bias: float) -
 
 
 def adev_model(tau: float | np.ndarray, arw: float | np.ndarray = 0.0, bias_instability: float | np.ndarray = 0.0,
-               rrw: float | np.ndarray = 0.0, quantization: float | np.ndarray = 0.0) -> np.ndarray:
-    """Allan deviation (rad/s) of the IEEE 952 model at ``tau`` (s).
+               rrw: float | np.ndarray = 0.0, quantization: float | np.ndarray = 0.0,
+               spacing: float | None = None) -> np.ndarray:
+    """Allan deviation (rad/s) of the IEEE 952 model at ``tau`` (s), with a dead time when ``spacing`` is given.
 
     ``sigma^2 = N^2/tau + (2 ln2/pi) B^2 + K^2 tau/3 + 3 Q^2/tau^2`` with ``arw`` N (rad/√s),
     ``bias_instability`` B (rad/s, the coefficient: the ADEV floor is 0.664 B), ``rrw`` K
-    (rad/s/√s) and ``quantization`` Q (rad). Arguments broadcast (e.g. (3,) per axis).
+    (rad/s/√s) and ``quantization`` Q (rad). ``spacing`` (s, >= ``tau``): the starts of the two
+    averages a maytag pair differences are that far apart (the turn and the settling between
+    them); flicker and random walk then decorrelate more than between adjacent averages
+    (:func:`workbench.allan_model.dead_time_variance`). Arguments broadcast (e.g. (3,) per axis).
     """
-    return allan_deviation(tau, arw, bias_instability, rrw, quantization)
+    if spacing is None:
+        return allan_deviation(tau, arw, bias_instability, rrw, quantization)
+    return np.sqrt(dead_time_variance(tau, spacing, arw, bias_instability, rrw, quantization))
 
 
 def pair_azimuth_sigma(adev_x: float, latitude: float, adev_y: float | None = None,
