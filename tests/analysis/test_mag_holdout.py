@@ -86,6 +86,29 @@ def test_held_out_figures_of_a_fixed_calibration_and_the_baseline():
     assert q.n_points == n and len(q.series["fit_norm"]) == n
 
 
+@pytest.mark.parametrize("drift", [np.zeros(3), np.array([0.006, -0.004, 0.003])])  # µT/s
+def test_hard_iron_move_between_the_halves(drift):
+    """The halves' ellipsoids on points whose hard iron drifts in time by ``drift``: each half's hard iron is the
+    mean over its half (the drift is linear in t), so they differ by drift x (mean t of the second half - of
+    the first) = drift x 150 s (0.9, -0.6, 0.45 µT) within 4 of the halves' sigmas in quadrature (white noise
+    alone: 0.2 µT over sqrt(1000 / 3) points per coefficient, ~0.016 µT measured; the hard iron's spread within a
+    half, up to 1.3 µT, is a misfit the fit's residual scaling takes in: 0.06-0.2 µT); the summary says the field
+    moved only when a component is over 4 sigma."""
+    from workbench.analysis import mag_ellipsoid
+
+    n = 2000
+    raw, accel, t = _points(n, 5)
+    raw = raw + np.outer(t, drift)
+    fit = mag_ellipsoid.fit_ellipsoid(raw)
+    q = holdout_quality(lambda sel: mag_ellipsoid.fit_ellipsoid(raw[sel]), fit, raw, accel, t, np.ones(n, bool))
+    _, first, second = halves(t)
+    expected = drift * (t[second].mean() - t[first].mean())
+    assert np.all(np.abs(q.hard_iron_move - expected) < 4 * q.hard_iron_move_sigma)
+    assert q.to_dict()["hard_iron_move_between_halves"]["ut"] == pytest.approx(list(q.hard_iron_move))
+    (line,) = [x for x in q.lines("ellipsoid") if "second half minus the first" in x]
+    assert ("moved during the record" in line) == bool(np.any(drift))
+
+
 def test_jackknife_sigmas_floor_by_the_refits_and_keep_unobserved_ones():
     """A fitter whose hard iron x is the mean of per-point values that step by 1 µT half way through the
     record (a board whose hard iron moves): over 5 blocks the pseudo-values are (0, 0, 0.5, 1, 1) µT (variance

@@ -4,7 +4,9 @@
   of the calibrated field norm (% of the fitted norm, over all points) and the spread (standard
   deviation, rad) of the field-to-gravity angle (over the points whose specific force is gravity), in
   sample and held out (fitted on the first half in time, judged on the second), for the fit and for a
-  plain 10-coefficient algebraic ellipsoid on the same points.
+  plain 10-coefficient algebraic ellipsoid on the same points; and how far the hard iron of the second
+  half is from the first's (a board whose field moves during the record is worse held out than any
+  constant calibration can help: ``benchmarks/mag_holdout_causes.py`` tests the causes).
 - :func:`jackknife_sigmas`: the fit refitted without each of :data:`JACKKNIFE_BLOCKS` contiguous blocks
   in time; each sigma covers the refits' spread (delete-a-block jackknife) and how much the coefficient
   moves from one block to the next beyond the noise (model misfit: a hand-held record's residuals depend
@@ -13,7 +15,7 @@
 
 Used by :mod:`workbench.analysis.mag_free`. Public: :class:`FitFigures`, :class:`FreeQuality`,
 :func:`point_values`, :func:`figures_of`, :func:`halves`, :func:`held_out`, :func:`holdout_quality`,
-:data:`JACKKNIFE_BLOCKS`, :func:`jackknife_sigmas`.
+:data:`MOVE_Z`, :data:`JACKKNIFE_BLOCKS`, :func:`jackknife_sigmas`.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from workbench.analysis.effective_n import block_jackknife, block_refits
 from workbench.analysis.mag_attitude import down_direction
 from workbench.analysis.mag_fit import MagFit
 from workbench.errors import AnalysisError
+from workbench.json_values import json_value
 
 
 @dataclass(frozen=True)
@@ -59,10 +62,15 @@ class FreeQuality:
     split_t: float
     notes: tuple[str, ...] = ()
     series: dict | None = None  # per point: t s; norm (fraction) and angle rad (NaN without gravity) per fit
+    hard_iron_move: np.ndarray | None = None  # (3,) µT: the second half's hard iron minus the first's (each fitted alone)
+    hard_iron_move_sigma: np.ndarray | None = None  # (3,) µT: the halves' sigmas in quadrature
 
     def to_dict(self) -> dict:
+        move = None if self.hard_iron_move is None else {
+            "ut": json_value(self.hard_iron_move), "sigma_ut": json_value(self.hard_iron_move_sigma)}
         return {"fit": self.fit.to_dict(), "plain_ellipsoid": None if self.baseline is None else self.baseline.to_dict(),
-                "n_points": self.n_points, "split_t_s": self.split_t, "notes": list(self.notes)}
+                "n_points": self.n_points, "split_t_s": self.split_t, "notes": list(self.notes),
+                "hard_iron_move_between_halves": move}
 
     def lines(self, method: str) -> list[str]:
         """Lines for people (%, °)."""
@@ -74,6 +82,15 @@ class FreeQuality:
                f"t = {self.split_t:.1f} s, judged after):", "  " + row(method, self.fit)]
         out.append("  " + (row("plain 10-coefficient ellipsoid", self.baseline) if self.baseline is not None
                            else "plain 10-coefficient ellipsoid: " + "; ".join(self.notes)))
+        if self.hard_iron_move is not None:
+            z = np.abs(self.hard_iron_move) / self.hard_iron_move_sigma
+            line = (f"  hard iron of the second half minus the first's (each fitted alone): "
+                    f"({', '.join(f'{v:+.2f}' for v in self.hard_iron_move)}) ± "
+                    f"({', '.join(f'{v:.2f}' for v in self.hard_iron_move_sigma)}) µT")
+            if np.nanmax(z, initial=0.0) > MOVE_Z:
+                line += (f", over {MOVE_Z:g} sigma: the field the board carries moved during the record; a calibration "
+                         "holds one hard iron, and the held-out figures include the move")
+            out.append(line)
         return out
 
 
@@ -104,6 +121,7 @@ def mean_dip(fit: MagFit, mag: np.ndarray, down: np.ndarray, gravity_ok: np.ndar
 
 
 Fitter = Callable[[np.ndarray], MagFit]  # fits the points selected by a (N,) bool mask
+MOVE_Z = 4.0  # the halves' hard irons differ "beyond their sigmas" over this many (the tests' 4-sigma level)
 
 
 def halves(t: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
@@ -121,7 +139,9 @@ def held_out(fitter: Fitter, mag: np.ndarray, down: np.ndarray, gravity_ok: np.n
 def holdout_quality(fitter: Fitter, fit: MagFit, mag: np.ndarray, accel: np.ndarray, t: np.ndarray,
                     gravity_ok: np.ndarray) -> FreeQuality:
     """Figures of ``fit`` (fitted on all points) and of ``fitter`` refitted on the first half in time and
-    judged on the second; the same for the plain algebraic ellipsoid (see the module docstring).
+    judged on the second; the same for the plain algebraic ellipsoid (see the module docstring); and the hard
+    iron of ``fitter`` on the second half minus the first's, with the halves' sigmas in quadrature (None when a
+    half does not fit).
     ``mag`` (N, 3) µT, ``accel`` (N, 3) m/s^2, ``t`` (N,) s of the points, ``gravity_ok`` (N,) bool the
     points whose specific force is gravity (the angle is judged on them)."""
     down = down_direction(accel)
@@ -143,7 +163,12 @@ def holdout_quality(fitter: Fitter, fit: MagFit, mag: np.ndarray, accel: np.ndar
     except AnalysisError as exc:
         base = None
         notes.append(f"failed ({exc})")
-    return FreeQuality(ours, base, len(mag), split, tuple(notes), series)
+    try:
+        one, two = fitter(first), fitter(second)
+        move, move_sigma = two.bias - one.bias, np.hypot(one.bias_sigma, two.bias_sigma)
+    except AnalysisError:
+        move = move_sigma = None
+    return FreeQuality(ours, base, len(mag), split, tuple(notes), series, move, move_sigma)
 
 
 
