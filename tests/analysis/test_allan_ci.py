@@ -11,7 +11,8 @@ import pytest
 from scipy.signal import fftconvolve
 
 from workbench.analysis.allan import deviation, phase
-from workbench.analysis.allan_ci import alpha_from_slope, confidence, edf_greenhall, edf_greenhall_many, identify
+from workbench.analysis.allan_ci import (alpha_from_slope, confidence, detrend_quadratic, edf_greenhall,
+                                         edf_greenhall_many, identify)
 from workbench.sim.powerlaw import kasdin_response
 
 
@@ -87,6 +88,19 @@ def test_noise_id_and_slope_alpha_on_long_records():
     assert np.all(alpha[mid, 0] == 0) and np.all(alpha[mid, 1] == -2)
     slope = alpha_from_slope(curve)
     assert np.all(slope[mid, 0] == 0) and np.all(slope[mid, 1] == -2)
+
+
+@pytest.mark.parametrize("n", [1, 3, 4, 5, 30, 1000, 65_536])
+def test_quadratic_detrend_equals_polyfit_residual(n):
+    # white, random-walk and integrated random-walk series on an offset: the projection on the
+    # orthogonal basis and numpy's Vandermonde least squares agree to rounding, a few hundred eps of
+    # the range (polyfit's own error grows with the offset over the range: 1.4e-13 at n = 4 here)
+    rng = np.random.default_rng(n)
+    for z in (rng.standard_normal(n), np.cumsum(rng.standard_normal(n)),
+              1e3 + np.cumsum(np.cumsum(rng.standard_normal(n)))):
+        t = np.arange(n, dtype=float)
+        ref = z - np.polyval(np.polyfit(t, z, 2), t) if n >= 3 else np.zeros(n)  # n < 3: any quadratic fits
+        assert np.max(np.abs(detrend_quadratic(z) - ref), initial=0.0) <= 1e-12 * max(np.ptp(z), 1.0)
 
 
 def _flicker_edf_decimal(d: int, m: int, n: int) -> float:

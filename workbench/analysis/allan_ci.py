@@ -17,7 +17,7 @@ evaluated on the rescaled problem (same r = M / S, J_MAX terms), which is the co
 behind the paper's large-J tables. The interval of the variance is then
 ``[edf s^2 / chi2(0.975, edf), edf s^2 / chi2(0.025, edf)]``.
 
-Public: :func:`chi2_ppf`, :func:`noise_id`, :func:`noise_id_decimated`, :func:`noise_id_spread`,
+Public: :func:`chi2_ppf`, :func:`detrend_quadratic`, :func:`noise_id`, :func:`noise_id_decimated`, :func:`noise_id_spread`,
 :func:`identify`, :func:`identify_decimated`, :func:`alpha_from_slope`, :func:`edf_greenhall`,
 :func:`edf_greenhall_many`, :func:`pick_wider`, :func:`confidence`, :class:`DeviationCI`.
 """
@@ -65,6 +65,27 @@ def _lag1(z: np.ndarray) -> float:
     return float(np.sum(z[:-1] * z[1:]) / den) if den > 0 else 0.0
 
 
+def detrend_quadratic(z: np.ndarray) -> np.ndarray:
+    """Residual (L,) of the least-squares quadratic in the index fitted to ``z`` (L,) (as
+    ``z - polyval(polyfit(t, z, 2), t)``, to ~1e-15 of ``z``'s range): a projection on the basis
+    1, u, u^2 - mean(u^2) (u the index mapped to [-1, 1]), orthogonal by symmetry, in six passes
+    over ``z`` (``polyfit``'s Vandermonde least squares took 5 ms on 65,536 points)."""
+    z = np.asarray(z, float)
+    n = len(z)
+    if n <= 3:  # the quadratic passes through every point
+        return np.zeros(n)
+    half = (n - 1) / 2.0
+    u = np.arange(n, dtype=float)
+    u -= half
+    u /= half
+    b2 = u * u
+    b2 -= b2.mean()
+    r = z - z.mean()
+    r -= np.einsum("i,i->", r, u) / np.einsum("i,i->", u, u) * u  # einsum: no BLAS threads (see _lag1)
+    r -= np.einsum("i,i->", r, b2) / np.einsum("i,i->", b2, b2) * b2
+    return r
+
+
 def noise_id(x: np.ndarray, m: int, dmax: int) -> float:
     """Power-law exponent alpha (not rounded) of the noise in phase ``x`` (L,) at lag ``m``.
 
@@ -83,9 +104,7 @@ def noise_id_spread(z: np.ndarray, dmax: int) -> tuple[float, float]:
     """(alpha, its standard error) from a decimated phase ``z``: the lag-1 estimate as
     :func:`noise_id_decimated`, and se = 2 se(r1) / (1 + r1)^2 with se(r1) = 1 / sqrt(L) of the
     series finally differenced (delta method on alpha = 2 - 2 (r1 / (1 + r1) + d))."""
-    z = np.asarray(z, float)
-    t = np.arange(len(z), dtype=float)
-    z = z - np.polyval(np.polyfit(t, z, 2), t)
+    z = detrend_quadratic(z)
     d = 0
     while True:
         r1 = _lag1(z)
