@@ -23,6 +23,7 @@ median time and judge the points after it. On the same 50-ms points (``mag_free.
    - timing: the magnetometer's time offset scanned about the fitted one (the field-to-gravity angle and the
      norm held out, both fits), the offset in 8-s windows;
    - dynamics: the held-out angle spread of both fits by rate of turn (hand accelerations in the gravity);
+   - rotation: the ellipsoid's field turned by the field-to-gyro rotation of the motion fit (angle only);
    - flagged samples: what the import left out (repeats, saturation), exact repeats left in, the fit
      without the blocks within 0.5 s of a gyro saturation, and the held-out residual near and away from them;
    - nonlinearity: a per-axis cubic term on the calibrated field (HMC5883L datasheet: linearity 0.1 % of
@@ -253,6 +254,23 @@ def dynamics(session, data, first, second) -> None:
     print("   held-out angle spread (ellipsoid / plain) of the blocks with gravity, by rate of turn: " + "; ".join(parts))
 
 
+def rotation(data, first, second) -> None:
+    """Item 3, the magnetometer-to-IMU rotation (angle only): the ellipsoid's calibrated field turned by the rotation
+    the field's turns show against the gyro (``Timing.rotation``, whole record), held out both ways."""
+    q, down = data.fit_mask(), data.down_directions()
+    r = data.timing.rotation()
+
+    def spread(train, test, rot):
+        h = mag_ellipsoid.fit_ellipsoid(data.mag[train]).compensate(data.mag[test & q]) @ rot.T
+        cos = np.sum(h * down[test & q], axis=1) / np.linalg.norm(h, axis=1)
+        return np.degrees(np.std(np.arccos(np.clip(cos, -1.0, 1.0))))
+
+    parts = [f"{name} {spread(first, second, rot):.3f}° / {spread(second, first, rot):.3f}°"
+             for name, rot in (("none", np.eye(3)), ("R", r), ("R^T", r.T))]
+    print(f"   ellipsoid's field turned by the field-to-gyro rotation ({np.degrees(np.arccos((np.trace(r) - 1) / 2)):.2f}°), "
+          "held-out angle spread first -> second / second -> first: " + ", ".join(parts))
+
+
 def flagged(ex: Excess, session, data, first, second) -> None:
     """Item 3, flagged samples: what the import left out, repeats left in, saturation's neighbourhood."""
     st = data.steps[0]
@@ -339,6 +357,7 @@ def main(argv: list[str] | None = None) -> int:
     time_models(ex, data, fit1, fit_all, first, second, split, others)
     timing(ex, session, data)
     dynamics(session, data, first, second)
+    rotation(data, first, second)
     flagged(ex, session, data, first, second)
     nonlinearity(ex, data, fit1, first, second)
     angle_difference(data, first, second)
