@@ -293,6 +293,11 @@ class CampaignPlan:
             import workbench.sim.imperfections  # noqa: F401 - the lab imperfections the rig is opened with
             import workbench.sim.rig  # noqa: F401
             import workbench.sim.sensor  # noqa: F401 - the rig's sensor model, imported when it starts
+            from workbench.sim.filters import load_kernels
+            from workbench.sim.noise import flicker_design
+
+            load_kernels()
+            flicker_design(1.0 / self.truth.sample_rate_hz)  # the noise filter, designed once for every recording
         if self.figures:
             from workbench.plots.pool import prepare_drawing
 

@@ -64,6 +64,7 @@ class Recording:
         self.resumed = len(manifest["steps"])  # steps recorded before (their samples are in the parts)
         self.frames: list[pd.DataFrame] = []  # samples of the steps recorded here, for the consolidation
         self._synced = -float("inf")  # time.monotonic() of the last sync of the step log
+        self._schema = None  # (column names and dtypes, the Arrow schema pandas would write for them)
 
     @property
     def done(self) -> int:
@@ -79,7 +80,7 @@ class Recording:
         parts = self.out_dir / PARTS
         parts.mkdir(exist_ok=True)
         tmp = parts / f".step_{record.index:05d}.tmp"
-        samples.to_parquet(tmp, index=False, **PART_PARQUET)
+        self._write(samples, tmp, PART_PARQUET)
         tmp.replace(parts / f"step_{record.index:05d}.parquet")
         line = json.dumps({"step": step, "rig_state": rig_state}, default=_json_default) + "\n"
         with open(self.out_dir / STEP_LOG, "a") as log:  # the step counts as recorded once this line is written
@@ -97,12 +98,26 @@ class Recording:
         df = pd.concat([*earlier, *self.frames], ignore_index=True)
         session = _in_memory(self.manifest, df, self.out_dir)  # validated before anything is replaced
         tmp = self.out_dir / ".samples.parquet.tmp"
-        df.to_parquet(tmp, index=False, **SAMPLES_PARQUET)
+        self._write(df, tmp, SAMPLES_PARQUET)
         tmp.replace(self.out_dir / "samples.parquet")
         write_manifest(self.out_dir, self.manifest)
         (self.out_dir / STEP_LOG).unlink(missing_ok=True)
         shutil.rmtree(self.out_dir / PARTS, ignore_errors=True)
         return session
+
+
+    def _write(self, frame: pd.DataFrame, path: Path, options: dict) -> None:
+        """Write ``frame`` to the Parquet file ``path``: the bytes ``frame.to_parquet(path, index=False,
+        **options)`` writes, from the frame's own column arrays (pandas' conversion and its schema,
+        made again for every call, cost more than the write of a short step)."""
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        key = tuple(zip(frame.columns, map(str, frame.dtypes)))
+        if self._schema is None or self._schema[0] != key:
+            self._schema = key, pa.Schema.from_pandas(frame.iloc[:0], preserve_index=False)
+        table = pa.Table.from_arrays([frame[c].to_numpy() for c in frame.columns], schema=self._schema[1])
+        pq.write_table(table, path, **options)
 
 
 def _json_default(value):

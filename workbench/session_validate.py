@@ -84,21 +84,34 @@ def validate_samples(df: pd.DataFrame, steps: Sequence[StepRecord], sample_rate_
     _check_units(df, source)
     if not check_labels:
         return df
+    rows = _label_rows(labels)
     known = {s.index for s in steps}
-    unknown = set(np.unique(labels)) - known - {-1}
+    unknown = set(rows) - known - {-1}
     if unknown:
         raise SessionError(f"{source}: column step: label(s) {sorted(unknown)[:5]} match no step in session.json")
     for s in steps:
-        sel = labels == s.index
         if s.t_start < t[0] - 1.5 * nominal or s.t_end > t[-1] + 1.5 * nominal:
             raise SessionError(f"{source}: step {s.index} ({s.t_start:.3f}..{s.t_end:.3f} s) points outside "
                                f"the samples ({t[0]:.3f}..{t[-1]:.3f} s)")
-        if require_complete and not sel.any():
+        if require_complete and s.index not in rows:
             raise SessionError(f"{source}: step {s.index} ({s.kind}) has no samples")
-        if sel.any():
-            ts = t[sel]
-            _check_step_span(source, s, float(ts[0]), float(ts[-1]), nominal, gaps_in_steps)
+        if s.index in rows:
+            first, last = rows[s.index]  # t increases: the step's first and last sample times
+            _check_step_span(source, s, float(t[first]), float(t[last]), nominal, gaps_in_steps)
     return df
+
+
+def _label_rows(labels: np.ndarray) -> dict[int, tuple[int, int]]:
+    """{label: (first row, last row)} of every label in ``labels`` (N,), from its runs of equal labels."""
+    if not len(labels):
+        return {}
+    change = np.flatnonzero(labels[1:] != labels[:-1]) + 1
+    starts, stops = np.r_[0, change], np.r_[change, len(labels)] - 1
+    run_labels = labels[starts]
+    names, first_run = np.unique(run_labels, return_index=True)
+    _, last_from_end = np.unique(run_labels[::-1], return_index=True)
+    last_run = len(run_labels) - 1 - last_from_end
+    return {int(k): (int(a), int(b)) for k, a, b in zip(names, starts[first_run], stops[last_run])}
 
 
 def _check_step_span(source: str, s: StepRecord, first: float, last: float, nominal: float,
@@ -164,14 +177,20 @@ def validate_parquet_stream(path: Path, steps: Sequence[StepRecord], sample_rate
 
 def _check_units(df: pd.DataFrame, source: str) -> None:
     """Flag physically implausible magnitudes (wrong declared units)."""
-    norm = np.median(np.linalg.norm(df[ACCEL].to_numpy(float), axis=1))
+    norm = np.median(_norm(df, ACCEL))
     if norm < 3.0 or norm > 30.0:
         raise SessionError(f"{source}: columns ax, ay, az: median |a| = {norm:.3g}, not m/s^2 "
                            "(given in g or mg? convert with an import profile)")
-    gmax = np.abs(df[GYRO].to_numpy(float)).max()
+    gmax = max(np.abs(df[c].to_numpy(float)).max() for c in GYRO)
     if gmax > 60.0:
         raise SessionError(f"{source}: columns gx, gy, gz: |rate| up to {gmax:.3g}, not rad/s (deg/s?)")
     if all(c in df.columns for c in MAG):
-        mn = np.median(np.linalg.norm(df[MAG].to_numpy(float), axis=1))
+        mn = np.median(_norm(df, MAG))
         if mn < 1.0 or mn > 1000.0:
             raise SessionError(f"{source}: columns mx, my, mz: median |m| = {mn:.3g}, not µT (gauss or nT?)")
+
+
+def _norm(df: pd.DataFrame, cols: list[str]) -> np.ndarray:
+    """(N,) Euclidean norm of the three columns ``cols`` of ``df``, row by row, from the columns as they are."""
+    x, y, z = (df[c].to_numpy(float) for c in cols)
+    return np.sqrt(x * x + y * y + z * z)

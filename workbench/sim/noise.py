@@ -26,9 +26,9 @@ from __future__ import annotations
 from functools import lru_cache
 
 import numpy as np
-from scipy.signal import sosfilt
 
 from workbench.allan_model import FLICKER_AVAR
+from workbench.sim.filters import sosfilt_rows
 
 FLICKER_TAU_MAX_S = 1.0e5  # s, upper end of the flat ADEV of the bias-instability process
 FLICKER_SECTIONS_PER_DECADE = 2
@@ -126,12 +126,12 @@ class NoiseProcess:
         self.white_std = np.asarray(white, float) / np.sqrt(dt)  # per-sample std, u
         self.rrw_std = np.asarray(rrw, float) * np.sqrt(dt)  # per-sample rate step, u
         sos, gain = flicker_design(float(dt))
-        self.sos = sos.copy()  # sosfilt needs a writable array
+        self.sos = sos.copy()  # the filter kernel takes a writable array
         self.flicker_std = gain * np.asarray(bias_instability, float)
         self.channels = self.white_std.size
         seq = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
         self._rng_white, self._rng_flicker, self._rng_rrw = map(np.random.default_rng, seq.spawn(3))
-        self._zi_flicker = np.zeros((self.sos.shape[0], self.channels, 2))
+        self._zi_flicker = np.zeros((self.channels, self.sos.shape[0], 2))  # per channel, per section
         self._rrw_state = np.zeros(self.channels)
 
     def generate(self, n: int) -> np.ndarray:
@@ -139,26 +139,31 @@ class NoiseProcess:
         out = self._rng_white.standard_normal((n, self.channels))
         out *= self.white_std
         if np.any(self.flicker_std):
-            drive = np.ascontiguousarray(self._rng_flicker.standard_normal((n, self.channels)).T)
-            flick, self._zi_flicker = sosfilt(self.sos, drive, axis=-1, zi=self._zi_flicker)
-            out += flick.T * self.flicker_std
+            flick = np.ascontiguousarray(self._rng_flicker.standard_normal((n, self.channels)).T)
+            sosfilt_rows(self.sos, flick, self._zi_flicker)  # in place, one row per channel
+            flick *= self.flicker_std[:, None]
+            out += flick.T
         if np.any(self.rrw_std):
-            steps = self._rng_rrw.standard_normal((n, self.channels)) * self.rrw_std
-            walk = np.cumsum(np.vstack([self._rrw_state, steps]), axis=0)[1:]  # sequential: chunking-exact
-            self._rrw_state = walk[-1]
+            walk = self._rng_rrw.standard_normal((n, self.channels))
+            walk *= self.rrw_std
+            walk[0] += self._rrw_state
+            np.cumsum(walk, axis=0, out=walk)  # sequential: chunking-exact
+            self._rrw_state = walk[-1].copy()
             out += walk
         return out
 
     def state(self) -> dict:
-        """JSON-ready state (generators and filter memories) for :meth:`restore`."""
+        """JSON-ready state (generators and filter memories) for :meth:`restore`; the flicker memories
+        section by section, (P, C, 2)."""
         return {"rng": [r.bit_generator.state for r in (self._rng_white, self._rng_flicker, self._rng_rrw)],
-                "flicker": self._zi_flicker.tolist(), "rrw": self._rrw_state.tolist()}
+                "flicker": self._zi_flicker.transpose(1, 0, 2).tolist(), "rrw": self._rrw_state.tolist()}
 
     def restore(self, state: dict) -> None:
         """Continue from a :meth:`state` taken earlier (e.g. when a recording is resumed)."""
         for rng, st in zip((self._rng_white, self._rng_flicker, self._rng_rrw), state["rng"]):
             rng.bit_generator.state = st
-        self._zi_flicker = np.array(state["flicker"], float).reshape(self._zi_flicker.shape)
+        sections = np.array(state["flicker"], float).reshape(self.sos.shape[0], self.channels, 2)
+        self._zi_flicker = np.ascontiguousarray(sections.transpose(1, 0, 2))
         self._rrw_state = np.array(state["rrw"], float).reshape(self.channels)
 
 

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
-from scipy.signal import lfilter
 from scipy.spatial.transform import Rotation
 
 from workbench.angles import wrap_2pi, wrap_pi
@@ -25,6 +24,7 @@ from workbench.motion import RigState
 from workbench.rigconfig import RigConfig, check_plan
 from workbench.sequence import PlannedStep
 from workbench.session import StepRecord
+from workbench.sim.filters import first_order_lag
 
 _SOAK_CHUNK_S = 60.0
 _STEADY_BLOCK = 64  # rows rotated at once for a steady segment (the matrix product is row-wise exact)
@@ -269,18 +269,21 @@ class SimRig:
         else:
             air = np.maximum(st.air_c - step, st.chamber_target_c)
         tau = float(self.truth.thermal_time_constant_s)
-        alpha = np.exp(-dt / tau)
-        unit, _ = lfilter([1 - alpha], [1, -alpha], air, zi=[alpha * st.unit_c])
+        unit = first_order_lag(air, float(np.exp(-dt / tau)), st.unit_c)
         st.air_c, st.unit_c = float(air[-1]), float(unit[-1])
         return air, unit
 
 
 def _frame(parts: list[dict[str, np.ndarray]]) -> pd.DataFrame:
-    """One frame of the samples of ``parts`` ({column: array}, in time order; empty ones left out)."""
+    """One frame of the samples of ``parts`` ({column: array}, in time order; empty ones left out).
+
+    The frame holds the arrays as they are (one block per column, not copied into one): the
+    runner writes them to the step's part and joins the steps' columns into the session's.
+    """
     parts = [p for p in parts if p]
     if len(parts) == 1:
-        return pd.DataFrame(parts[0])
-    return pd.DataFrame({c: np.concatenate([p[c] for p in parts]) for c in parts[0]})
+        return pd.DataFrame(parts[0], copy=False)
+    return pd.DataFrame({c: np.concatenate([p[c] for p in parts]) for c in parts[0]}, copy=False)
 
 
 def _ramp_rate(r0: float, r1: float, accel: float, fs: float) -> np.ndarray:
