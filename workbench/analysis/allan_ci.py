@@ -185,18 +185,26 @@ def _sx_flicker(t: np.ndarray, f: np.ndarray) -> np.ndarray:
     sx = 2 ln F + 2 g(x) - g(x - 1) - g(x + 1) for |x| < :data:`_SERIES_GAP`, else
     -2 ln|t| - 3 + sum_p x^(-2p) / (p (p + 1) (2p + 1)) (the series of (1 + u)^2 ln|1 + u|
     + (1 - u)^2 ln|1 - u| in u = 1 / x)."""
-    t, f = np.broadcast_arrays(t, f)
+    shape = np.broadcast_shapes(np.shape(t), np.shape(f))
+    t, f = np.broadcast_arrays(np.atleast_1d(t), np.atleast_1d(f))
     x = t * f
-    out = np.empty(x.shape)
-    near = np.abs(x) < _SERIES_GAP
-    xn = x[near]
-    out[near] = 2.0 * np.log(f[near]) + 2.0 * _u2_logu(xn) - _u2_logu(xn - 1.0) - _u2_logu(xn + 1.0)
-    u2 = x[~near] ** -2.0
-    series = np.zeros(len(u2))
-    for p in range(_SERIES_POWERS, 0, -1):  # Horner in u^2
-        series = (series + 1.0 / (p * (p + 1) * (2 * p + 1))) * u2
-    out[~near] = -2.0 * np.log(np.abs(t[~near])) - 3.0 + series
-    return out
+    with np.errstate(divide="ignore", invalid="ignore"):  # x = 0 (a near point) gives inf here
+        u2 = x * x
+        np.divide(1.0, u2, out=u2)
+        series = u2 * (1.0 / (_SERIES_POWERS * (_SERIES_POWERS + 1) * (2 * _SERIES_POWERS + 1)))
+        for p in range(_SERIES_POWERS - 1, 0, -1):  # Horner in u^2, in place (the far points are nearly all)
+            series += 1.0 / (p * (p + 1) * (2 * p + 1))
+            series *= u2
+        out = np.abs(t)
+        np.log(out, out=out)
+        out *= -2.0
+        out -= 3.0
+        out += series
+    near = np.flatnonzero(np.abs(x) < _SERIES_GAP)
+    if len(near):
+        xn, fn = x.ravel()[near], f.ravel()[near]
+        out.ravel()[near] = 2.0 * np.log(fn) + 2.0 * _u2_logu(xn) - _u2_logu(xn - 1.0) - _u2_logu(xn + 1.0)
+    return out.reshape(shape)
 
 
 def _sz(t: np.ndarray, f: float | np.ndarray, alpha: int, d: int) -> np.ndarray:
