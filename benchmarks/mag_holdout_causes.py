@@ -136,7 +136,7 @@ def temperature(ex: Excess, data, fit1, fit_all, temp, first, second, others) ->
     print(f"   die temperature {temp.min():.3f}-{temp.max():.3f} °C smoothed over {SMOOTH_S:g} s (first half "
           f"{np.ptp(temp[first]):.3f} °C span, correlation with time {np.corrcoef(temp, data.t)[0, 1]:+.2f})")
     ex.add("hard iron linear in the die temperature", _rms(norm_errors(m, mag[second], temp[second] - ref)),
-           f"k ({', '.join(f'{v:+.1f}' for v in m.rate)}) ± ({', '.join(f'{v:.1f}' for v in m.rate_sigma)}) µT/°C")
+           f"k ({', '.join(f'{v:+.3g}' for v in m.rate)}) ± ({', '.join(f'{v:.2g}' for v in m.rate_sigma)}) µT/°C")
     if not others:
         return
     whole = fit_moving(mag, temp - ref, fit_all)
@@ -280,17 +280,21 @@ def flagged(ex: Excess, session, data, first, second) -> None:
               (("repeated", FLAG_REPEATED), ("saturated", FLAG_SATURATED)) for triad in ("mag", "gyro", "accel")}
     m = df[["mx", "my", "mz"]].to_numpy(float)[session.good("mag", st)]
     left = int(np.count_nonzero(np.all(np.diff(m, axis=0) == 0, axis=1)))
-    print(f"   import flags (left out of every fit): {', '.join(f'{k} {v}' for k, v in counts.items() if v)}; "
-          f"exact repeats among the magnetometer samples kept: {left}")
+    shown = ", ".join(f"{k} {v}" for k, v in counts.items() if v) or "none"
+    print(f"   import flags (left out of every fit): {shown}; exact repeats among the magnetometer samples kept: {left}")
     sat = df["t"].to_numpy(float)[~session.good("gyro", st)]
-    near = np.array([np.any(np.abs(sat - x) < SAT_S) for x in data.t]) if len(sat) else np.zeros(len(data.t), bool)
+    if not len(sat):
+        print("   no gyro saturation")
+        return
+    near = np.array([np.any(np.abs(sat - x) < SAT_S) for x in data.t])
     f1, f1x = mag_ellipsoid.fit_ellipsoid(data.mag[first]), mag_ellipsoid.fit_ellipsoid(data.mag[first & ~near])
     ex.add(f"blocks within {SAT_S:g} s of a gyro saturation left out of the fit ({int((first & near).sum())})",
            _rms(_const_err(f1x, data.mag[second])))
-    print(f"   judged apart (the first half's fit): the second half's {int((second & near).sum())} blocks within "
-          f"{SAT_S:g} s of a gyro saturation {100 * _rms(_const_err(f1, data.mag[second & near])):.2f} %, the other "
-          f"{int((second & ~near).sum())} {100 * _rms(_const_err(f1, data.mag[second & ~near])):.2f} % (where the "
-          "hand turned fastest, not a corrupted fit)")
+    if (second & near).any() and (second & ~near).any():
+        print(f"   judged apart (the first half's fit): the second half's {int((second & near).sum())} blocks within "
+              f"{SAT_S:g} s of a gyro saturation {100 * _rms(_const_err(f1, data.mag[second & near])):.2f} %, the other "
+              f"{int((second & ~near).sum())} {100 * _rms(_const_err(f1, data.mag[second & ~near])):.2f} % (where the "
+              "hand turned fastest, not a corrupted fit)")
 
 
 def nonlinearity(ex: Excess, data, fit1, first, second) -> None:
