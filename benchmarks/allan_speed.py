@@ -16,9 +16,13 @@
    interleaved ``--repeat`` times; medians of wall time, CPU time and peak RSS, the load average.
    ``--all-n``: the same with every tau (``--stat oadev --taus all``: m = 1 .. N / 4 with
    intervals; allantools given the same taus).
+4. The total family (``--total-n`` samples for TOTDEV, default 1e6; ``--mtot-n`` for MTOTDEV, TTOTDEV,
+   HTOTDEV, default 1e4; octave taus, one channel, in one process): CPU of the statistic against plain
+   fused single-pass numba kernels of the same sums (per lag one loop over the record; per
+   subsequence one loop over its reflection), and the largest relative difference.
 
 Run: ``python benchmarks/allan_speed.py [--n 1e7] [--stream-n 1e9] [--memory-n 1e8] [--command-n 1e7]
-[--all-n 1e4] [--dir /tmp]``.
+[--all-n 1e4] [--total-n 1e6] [--mtot-n 1e4] [--dir /tmp]``.
 """
 
 from __future__ import annotations
@@ -92,6 +96,95 @@ def bench_in_memory(n: int) -> None:
             line += (f"; a plain fused single-pass kernel: {c_plain:.3f} s CPU (workbench / plain "
                      f"{c_wb / c_plain:.2f}, phase included in workbench)")
         print(line)
+def _plain_total_kernels():
+    """Reference "fused single-pass" kernels of the total family, per lag one loop over the record:
+    totdev over an explicitly reflected copy of the phase, mtotdev / htotdev per subsequence of 3m
+    points with its detrended 9m reflection written out and its m-point sums from a prefix sum
+    (SP 1065 eq. 25, 27; the construction allantools loops over in Python)."""
+    import numba
+
+    @numba.njit(cache=False, nogil=True)
+    def totdev(x, m):
+        n = x.shape[0]
+        ext = np.empty(n + 2 * m)  # x*[k] for k = -m .. n - 1 + m
+        for k in range(-m, n + m):
+            ext[k + m] = 2.0 * x[0] - x[-k] if k < 0 else (2.0 * x[n - 1] - x[2 * n - 2 - k] if k >= n else x[k])
+        acc = 0.0
+        for t in range(1, n - 1):
+            d = ext[t] - 2.0 * ext[t + m] + ext[t + 2 * m]
+            acc += d * d
+        return acc
+
+    @numba.njit(cache=False, nogil=True)
+    def mtot(x, m, hadamard):
+        three = 3 * m
+        h1, h2 = three // 2, (three + 1) // 2
+        dist = (0.5 * (three - 1) + 1.0) if three % 2 == 1 else 0.5 * three
+        star = np.empty(9 * m)
+        cs = np.empty(9 * m + 1)
+        total = 0.0
+        for i in range(x.shape[0] - three + 1):
+            slope = (x[i + h2:i + three].mean() - x[i:i + h1].mean()) / dist
+            for j in range(three):
+                v = x[i + j] - slope * ((j - h1) if hadamard else j)
+                star[three + j] = v
+                star[three - 1 - j] = v
+                star[3 * three - 1 - j] = v
+            cs[0] = 0.0
+            for j in range(9 * m):
+                cs[j + 1] = cs[j] + star[j]
+            acc = 0.0
+            for j in range(6 * m):
+                d = (cs[j + 3 * m] - 2.0 * cs[j + 2 * m] + cs[j + m] - (cs[j + 2 * m] - 2.0 * cs[j + m] + cs[j])) / m
+                acc += d * d
+            total += acc / (6.0 * m) / (6.0 if hadamard else 1.0)
+        return total
+
+    return totdev, mtot
+
+
+def bench_total(n_tot: int, n_mtot: int) -> None:
+    """The total family (octave taus, one channel, in one process) against the plain kernels of
+    :func:`_plain_total_kernels`: CPU of :func:`workbench.analysis.stability.stability` (phase and
+    normalisation included) over the CPU of the plain sums alone."""
+    from workbench.analysis.stability import factors, stability, to_phase
+
+    totdev, mtot = _plain_total_kernels()
+    rng = np.random.default_rng(4)
+    for stat, n in (("totdev", n_tot), ("mtotdev", n_mtot), ("ttotdev", n_mtot), ("htotdev", n_mtot)):
+        y = 1e-3 * rng.standard_normal(n)
+        stability(y[:1000], RATE, stat)  # load numba and the cached kernels
+        x = to_phase(y, RATE, "freq")
+        m = factors(len(x), "octave", RATE, stat)
+        if stat == "totdev":
+            totdev(x[:100], 2)
+        else:
+            mtot(x[:100], 2, False)
+        c0 = time.process_time()
+        curve = stability(y, RATE, stat, "freq", "octave")
+        c_wb = time.process_time() - c0
+        c0 = time.process_time()
+        if stat == "totdev":
+            sums = np.array([totdev(x, int(k)) for k in m])
+            ref = np.sqrt(sums / (2.0 * (m / RATE) ** 2 * (len(x) - 2)))
+        elif stat == "htotdev":
+            yf = np.diff(x) * RATE
+            k = m[m > 1]
+            sums = np.array([mtot(yf, int(v), True) for v in k])
+            ref = np.sqrt(sums / (len(yf) - 3 * k + 1))
+        else:
+            sums = np.array([mtot(x, int(v), False) for v in m])
+            ref = np.sqrt(sums / (2.0 * (m / RATE) ** 2 * (len(x) - 3 * m + 1)))
+            if stat == "ttotdev":
+                ref = ref * (m / RATE) / np.sqrt(3.0)
+        c_plain = time.process_time() - c0
+        dev = curve.dev[curve.m > 1] if stat == "htotdev" else curve.dev
+        diff = float(np.max(np.abs(dev / ref - 1)))
+        print(f"octave {stat.upper()}, {n:.3g} samples ({len(curve.m)} taus): workbench {c_wb:.3f} s CPU, plain fused "
+              f"single-pass kernel {c_plain:.3f} s CPU (workbench / plain {c_wb / c_plain:.2f}), max relative "
+              f"difference {diff:.1e}")
+
+
 def write_parquet(path: Path, n: int, chunk: int = 1 << 20) -> None:
     """``n`` samples of white + random-walk rate noise in column ``gx``, row groups of ``chunk``."""
     import pyarrow as pa
@@ -237,10 +330,15 @@ def main() -> None:
                                                                "octave taus (0: skip)")
     ap.add_argument("--all-n", type=float, default=0, help="samples per axis of the whole-command comparison, "
                                                            "every tau (0: skip)")
+    ap.add_argument("--total-n", type=float, default=1e6, help="samples of the TOTDEV comparison with plain kernels "
+                                                             "(0: skip the total family)")
+    ap.add_argument("--mtot-n", type=float, default=1e4, help="samples of the MTOTDEV / TTOTDEV / HTOTDEV comparison")
     ap.add_argument("--repeat", type=int, default=3, help="interleaved repetitions of the whole-command comparison")
     args = ap.parse_args()
     if args.n > 0:
         bench_in_memory(int(args.n))
+    if args.total_n > 0:
+        bench_total(int(args.total_n), int(args.mtot_n))
     if args.command_n > 0:
         bench_command(int(args.command_n), "octave", args.repeat, args.dir)
     if args.all_n > 0:
