@@ -64,7 +64,9 @@ def main() -> None:
     st.title(TITLE)
     st.caption("Overlapping Allan deviation with 95 % chi-squared intervals (Greenhall EDF), IEEE Std 952 "
                "noise terms with model selection; 'not observed' terms show the upper bound the record allows.")
-    source = st.radio("Data", ["Simulated rig", "Recorded session"], horizontal=True, key="allan.source")
+    recorded = bool(results.session_dirs(PROC.NAME))  # a store with allan sessions opens on them
+    source = st.radio("Data", ["Simulated rig", "Recorded session"], index=1 if recorded else 0, horizontal=True,
+                      key="allan.source")
     result = None
     with ui.guarded("allan", catch_all=True):
         result = _simulated() if source == "Simulated rig" else results.result_picker(PROC.NAME, key="allan.pick")

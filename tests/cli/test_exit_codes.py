@@ -86,3 +86,14 @@ def test_ctrl_c_exits_130_after_making_the_rig_safe_and_the_hint_resumes(tmp_pat
     assert resumed.returncode == 0, resumed.stderr
     assert json.loads((out / "session" / "session.json").read_text())["complete"]
     assert (out / "result.json").exists()
+
+
+def test_a_constant_record_is_one_line_naming_the_file_and_column(db, tmp_path, capsys):
+    """A stuck channel (every sample equal) has no noise to identify: exit 2 naming it, no traceback."""
+    path = tmp_path / "stuck.txt"
+    path.write_text("3.0\n" * 1000)
+    assert main(["allan", str(path), "--rate", "10"]) == 2
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in captured.err
+    assert f"{path}: column data: the deviation is zero at every tau" in lines[0]

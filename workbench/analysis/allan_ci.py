@@ -32,6 +32,7 @@ import numpy as np
 
 from workbench.analysis.allan import DeviationCurve
 from workbench.analysis.chi2 import chi2_ppf
+from workbench.errors import AnalysisError
 
 J_MAX = 2000  # terms of the Greenhall sum evaluated directly (the paper uses 100)
 MIN_POINTS_ID = 100  # decimated phase points needed for the lag-1 noise identification
@@ -377,13 +378,20 @@ def pick_wider(first: np.ndarray, second: np.ndarray, edf) -> np.ndarray:
 # -- intervals -----------------------------------------------------------------------------
 
 def confidence(curve: DeviationCurve, x: np.ndarray | None = None, alpha: np.ndarray | None = None,
-               level: float = 0.95) -> DeviationCI:
+               level: float = 0.95, source: str = "data") -> DeviationCI:
     """Chi-squared interval of every point of ``curve`` at two-sided confidence ``level``.
 
     The noise exponent comes from ``alpha`` (K, C) if given, else is identified from the
     phase ``x`` (C, L) the curve was computed from (:func:`workbench.analysis.allan.phase`);
     NaN exponents (taus too long to identify) are filled as described in the module docstring.
+    A column whose deviation is zero at every tau (a constant record) is an AnalysisError naming
+    ``source`` (the file or session) and the column.
     """
+    flat = ~np.any(curve.dev > 0, axis=0)
+    if flat.any():
+        col = curve.columns[int(np.argmax(flat))] if curve.columns else str(int(np.argmax(flat)))
+        raise AnalysisError(f"{source}: column {col}: the deviation is zero at every tau: a constant record has no noise "
+                            "to characterise (a stuck or disconnected channel?)")
     if alpha is None:
         if x is None:
             raise ValueError("confidence: give the phase x or the noise exponents alpha")

@@ -476,7 +476,7 @@ def analyze_record(y: np.ndarray, rate: float, columns: tuple[str, ...] | list[s
 
     segments, warnings = allan.prepare_rate_data(y, tuple(columns), source, gap_policy, quantity)
     curve, x = allan.segment_deviation(segments, rate, "oadev", taus, tuple(columns), source, overwrite)
-    ci = confidence(curve, x)
+    ci = confidence(curve, x, source=source)
     return AllanAnalysis(ci, fit_terms(ci), quantity, tuple(warnings))
 
 
@@ -499,5 +499,5 @@ def analyze_stream(batches: Callable[[], Iterator[np.ndarray]], rate: float, col
     s = stream_deviation_from(batches, columns, rate, "oadev", taus, tmp_dir=tmp_dir, source=source,
                               quantity=quantity, keep=MAX_POINTS_ID)
     c = s.curve
-    ci = confidence(c, alpha=identify_decimated(s.decimated, c.n_samples + 1, c.m, c.kind))
+    ci = confidence(c, alpha=identify_decimated(s.decimated, c.n_samples + 1, c.m, c.kind), source=source)
     return AllanAnalysis(ci, fit_terms(ci), quantity)
