@@ -13,11 +13,12 @@ module the command imported with its own import time. Two kinds of check:
 - How long, as a share that load does not change: the project's own modules (``workbench.*``)
   against the command's whole import time, measured in the same run. What is left is the
   libraries the command cannot do without (typer and rich; for ``sets list`` also typer's
-  pydantic layer and ``sqlite3``), which the first check pins. Measured on this 2-core machine
-  with the byte code cached (issue 23, load 8): the own modules are 3.1-3.5 % of ``--help``
-  (all command modules load to list them) and 1.6-1.7 % of ``sets list`` (10-13 % and 1.4 %
-  when every module is compiled from source, as under ``PYTHONDONTWRITEBYTECODE``, and
-  ``sets list`` still loaded SQLAlchemy). The seconds of issue 23
+  pydantic layer and ``sqlite3``), which the first check pins. Measured as the test does (the
+  smallest own time of three runs over the smallest whole), three times, on this 2-core machine
+  at load 5 (issue 23, 2026-12-02): with the byte code cached the own modules are 2.2-3.5 % of
+  ``--help`` (all command modules load to list them) and 1.1-1.3 % of ``sets list``; every module
+  compiled from source (``PYTHONDONTWRITEBYTECODE``, a copy without ``__pycache__``) 6.5-11.5 % and
+  1.1-2.9 %. The seconds of issue 23
   (``--help`` under 0.3 s, ``sets list`` under 0.5 s wall, the console script a user types)
   are printed by ``benchmarks/startup_speed.py``.
 """
