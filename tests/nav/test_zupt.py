@@ -196,18 +196,59 @@ def test_zarupt_window_is_capped_at_the_update_interval():
 
 
 def test_zarupt_through_turns_with_wide_priors_warns(pre_calibration):
-    # the consistency tables of docs/navigation.md: over 20 seeds pitch / x accel bias errors are 1.5-1.6x their
-    # sigma with ZARUPT through turns at a 1 mg horizontal accel-bias prior (in band at 0.3 mg), and 1.7-9x from
-    # an external heading sigma of 10-17° (in band at 7°); ZUPT alone is in band in both
+    # the consistency tables of docs/navigation.md: over 20 seeds roll / pitch / accel bias errors are up to 1.6x
+    # their sigma with ZARUPT through turns from an external heading sigma of 17° (in band at 10°); ZUPT alone is
+    # in band; a 1 mg horizontal accel-bias prior no longer matters (pitch / x accel bias 1.10 / 1.12)
     samples, _, noise, still = pre_calibration
     zarupt, zupt_only = ("position", "velocity", "zarupt"), ("position", "velocity")
-    for meas, prior, heading_deg, warned in ((zarupt, 0.01, 3.0, "accelerometer"), (zarupt, 0.003, 3.0, None),
-                                             (zarupt, 0.003, 12.0, "initial heading"), (zupt_only, 0.01, 12.0, None)):
+    for meas, prior, heading_deg, warned in ((zarupt, 0.01, 3.0, None), (zarupt, 0.003, 15.0, "initial heading"),
+                                             (zupt_only, 0.01, 15.0, None)):
         cfg = zupt.ZuptConfig(level_s=30.0, measurements=meas, heading_sigma=np.radians(heading_deg),
                               gyro_bias_prior=np.radians(3.0) / 3600, accel_bias_prior=prior)
         res = zupt.align(samples, noise, LAT, np.radians(30.0), 0.0, cfg, still=still)
         notes = [w for w in res.warnings if "optimistic" in w]
         assert [warned in w for w in notes] == ([True] if warned else []), (meas, prior, heading_deg, notes)
+
+
+def test_gyrocompass_heading_error_carries_the_north_tilt():
+    # the relation the initial covariance uses: levelling with a biased accelerometer tilts the level frame, which
+    # leaks the vertical Earth rate into the horizontal, and the gyrocompass heading error is -tan(lat) times the
+    # north tilt error (noise-free closed-form data: exact to the second order, tilt ~1 mrad -> 1e-3 relative)
+    for ab in (np.array([0.01, 0.0, 0.0]), np.array([0.0, 0.01, 0.0]), np.array([0.007, -0.005, 0.003])):
+        samples, att = table_run(MOUNT, 10.0, seed=0, accel_bias=ab, arw=1e-12, vrw=1e-12)
+        roll, pitch = coarse_level(samples.accel)
+        heading = zupt.gyrocompass(from_rph(roll, pitch, 0.0).apply(samples.gyro.mean(axis=0)), LAT)
+        err = (att[0] * from_rph(roll, pitch, heading).inv()).as_rotvec()  # C_true = Exp(err) C_est, NED
+        assert err[2] == pytest.approx(-np.tan(LAT) * err[0], rel=3e-3, abs=1e-9)
+
+
+def test_rotating_zarupt_tilt_and_accel_bias_stay_consistent_through_turns():
+    # 20 seeds, 60 s holds, gyrocompass: for a consistent filter 20 rms(e / sigma)^2 ~ chi2(20); one-sided 99.5 %
+    # bound per component, 1.41 (pitch and x accel bias: family false alarm 1 %). Re-linearised at every
+    # correction they were 1.51 / 1.62; with the true horizontal gyro bias zero (a lucky unit: the gyrocompass
+    # heading is right, its sigma still 17°) 10.1 / 11.9, now 0.90 / 0.92
+    from scipy.stats import chi2
+
+    hi = np.sqrt(chi2.ppf(0.995, 20) / 20)
+    z, _, _ = normalised_errors("rotating", True, range(20), hold_s=60.0)
+    rms = np.sqrt(np.mean(z ** 2, axis=0))
+    assert rms[1] < hi and rms[3] < hi, rms.round(2)
+
+
+def test_zupt_heading_sigma_is_the_limit_with_the_vertical_bias_unknown():
+    # ZUPT alone does not measure the vertical rate: the heading drifts at the vertical gyro bias b_D (prior
+    # 3 °/h: 1° over the 21 min) and the filter must take the drift from the heading's history. Closed form: the
+    # end value of psi(t) = psi_T + b_D (t - T) observed through Omega cos(lat) psi(t) with white noise ARW over T,
+    # b_D with its prior (1.18° here against 1.07° for a known b_D). The filter: +1.9 % (levelling window,
+    # discrete updates; the ZARUPT's +2.1 % over its own limit); 5 % allowed. 2 seeds: the sigma hardly depends on
+    # the data.
+    hold = 240.0
+    total = hold + 4 * (hold + TURN_S)
+    wc = EARTH_RATE * np.cos(LAT)
+    info = (wc / HG_ARW) ** 2 * np.array([[total, -total ** 2 / 2], [-total ** 2 / 2, total ** 3 / 3]])
+    limit = np.degrees(np.sqrt(np.linalg.inv(info + np.diag([0.0, GYRO_PRIOR ** -2]))[0, 0]))
+    _, _, sig = normalised_errors("rotating", False, range(2), hold_s=hold)
+    assert 1.0 <= sig.mean() / limit < 1.05, (sig.mean(), limit)
 
 
 # -- consistency over seeds: normalised errors against a chi-square band -------------------------------
