@@ -13,7 +13,9 @@
    ``workbench allan FILE --rate 100 --taus octave --out curves.csv`` (start-up, read, OADEV,
    intervals, fit, table, CSV) against a plain allantools script (read the same Parquet,
    ``oadev`` per axis with its default error bars, write a CSV), each in a fresh process,
-   interleaved ``--repeat`` times; medians of wall time, CPU time and peak RSS, the load average.
+   interleaved ``--repeat`` times; medians of wall time, CPU time and peak RSS, the load average;
+   then the CPU of each of the command's steps (read, numba, phase and sums, intervals, fit, output)
+   timed in one process, ``--repeat`` processes.
    ``--all-n``: the same with every tau (``--stat oadev --taus all``: m = 1 .. N / 4 with
    intervals; allantools given the same taus).
 4. The total family (``--total-n`` samples for TOTDEV, default 1e6; ``--mtot-n`` for MTOTDEV, TTOTDEV,
@@ -274,6 +276,48 @@ print(time.perf_counter() - t0, r.ru_maxrss / 1024, r.ru_utime + r.ru_stime)
 """
 
 
+_STEPS = """
+import json, sys, time
+laps, t = [], [time.process_time()]
+def lap(name):
+    c = time.process_time(); laps.append((name, c - t[0])); t[0] = c
+from pathlib import Path
+import numpy as np; lap("numpy")
+from workbench.cli import main; lap("typer, rich, workbench.cli")
+from workbench.cli.allan_record import load_record, quantity_of
+from workbench.analysis import allan
+from workbench.analysis.allan_ci import confidence
+from workbench.analysis.allan_fit import AllanAnalysis, fit_terms
+from workbench.cli.allan_csv import CURVE_COLUMNS, curve_rows, write_csv
+from workbench.cli.allan_tables import print_terms
+lap("the command's modules")
+import pyarrow.parquet as pq; pq.ParquetFile(sys.argv[1]).metadata.num_rows; lap("pyarrow, size check")
+y, fs, cols, label = load_record(Path(sys.argv[1]), None, 100.0); lap("Parquet read")
+segments, warnings = allan.prepare_rate_data(y, tuple(cols), label, "error", quantity_of(cols)); lap("input checks")
+if y.size > allan.COMPILED_WORK / 20:
+    from workbench.analysis import allan_kernels
+    allan_kernels.column_sums(np.zeros((2, 3))); lap("numba, first cached kernel")
+curve, x = allan.segment_deviation(segments, fs, "oadev", "octave", tuple(cols), label, True); lap("phase, OADEV sums")
+ci = confidence(curve, x); lap("intervals")
+terms = fit_terms(ci); lap("IEEE 952 fit")
+an = AllanAnalysis(ci, terms, quantity_of(cols), tuple(warnings))
+print_terms(an); write_csv(Path(sys.argv[2]), CURVE_COLUMNS, curve_rows(an)); lap("table, CSV")
+sys.stdout.flush()
+print("STEPS " + json.dumps(laps))
+"""
+
+
+def _steps(path: Path, out_csv: Path, repeat: int) -> list[tuple[str, list[float]]]:
+    """CPU (s) of each step of the octave command (:data:`_STEPS`: the command's calls, timed in one
+    fresh process), ``repeat`` processes; (step, CPU per run)."""
+    runs = []
+    for _ in range(repeat):
+        res = subprocess.run([sys.executable, "-c", _STEPS, str(path), str(out_csv)], capture_output=True, text=True,
+                             check=True)
+        runs.append(json.loads(res.stdout.rsplit("STEPS ", 1)[1]))
+    return [(name, [r[k][1] for r in runs]) for k, (name, _) in enumerate(runs[0])]
+
+
 def _timed(cmd: list[str]) -> tuple[float, float, float]:
     """Wall time (s), peak RSS (MB) and CPU time (s) of ``cmd`` in a fresh process."""
     out = subprocess.run([sys.executable, "-c", _TIMED, *cmd], capture_output=True, text=True, check=True)
@@ -318,6 +362,15 @@ def bench_command(n: int, taus: str, repeat: int, directory: Path) -> None:
         print(f"  ratio allantools / workbench: {med['allantools'][0] / med['workbench'][0]:.2f}x wall, "
               f"{med['allantools'][2] / med['workbench'][2]:.2f}x CPU (the CPU ratio is the one to read on a "
               f"loaded machine); max relative difference of the deviations {diff:.1e}")
+        if taus == "octave":
+            load0 = os.getloadavg()[0]
+            steps = _steps(path, Path(tmp) / "steps.csv", repeat)
+            total = sum(float(np.median(v)) for _, v in steps)
+            print(f"  where the workbench's CPU goes (the command's calls timed in one process, medians of {repeat}, "
+                  f"load {load0:.1f}-{os.getloadavg()[0]:.1f}; typer's option parsing not included):")
+            for name, v in steps:
+                print(f"    {name:28s} {np.median(v):6.3f} s ({min(v):.3f}-{max(v):.3f})")
+            print(f"    {'total':28s} {total:6.3f} s")
 
 
 def main() -> None:
