@@ -74,3 +74,23 @@ def dead_time_variance(tau, spacing, white=0.0, bias_instability=0.0, rrw=0.0, q
 
     second = 2.0 * v(tau) + 2.0 * v(spacing) - v(spacing + tau) - v(gap)
     return second / (2.0 * tau ** 2) + np.asarray(ramp, float) ** 2 * spacing ** 2 / 2.0
+
+
+def window_mean_covariance(start, end, white=0.0, bias_instability=0.0, rrw=0.0, quantization=0.0) -> np.ndarray:
+    """Generalised covariance (n, n) of the signal's means over the windows ``[start_i, end_i]`` (s).
+
+    ``Cov(m_a, m_b) = -(V(e_a - e_b) - V(e_a - s_b) - V(s_a - e_b) + V(s_a - s_b)) / (2 T_a T_b)``
+    with ``V`` the phase variogram (:func:`_phase_variogram`) of one channel's terms (scalars). Exact
+    for every contrast ``w`` of the means (``sum w = 0``, e.g. a mean minus the mean of all, a
+    difference of two): ``w C w`` is its variance; a single entry alone means nothing (random walk
+    and flicker have no finite variance). Units: the signal's squared.
+    """
+    s, e = np.asarray(start, float), np.asarray(end, float)
+
+    def v(h):
+        return _phase_variogram(h, white, bias_instability, rrw, quantization)
+
+    second = v(e[:, None] - e[None, :]) - v(e[:, None] - s[None, :]) - v(s[:, None] - e[None, :]) \
+        + v(s[:, None] - s[None, :])
+    span = e - s
+    return -0.5 * second / (span[:, None] * span[None, :])

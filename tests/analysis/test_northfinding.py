@@ -310,6 +310,47 @@ def test_redundant_eight_pairings_and_repeatability_table():
     assert nfm.find_north(s, "redundant", positions_per_turn=8).detail.pairings == d.pairings
 
 
+def test_redundant_spread_over_turns_follows_the_noise_model_with_the_bias_wander():
+    """Flicker + random walk, the bias removed as the session mean: each pairing's std over the 10 turns and the
+    error of its session mean follow the propagated noise (northfinding_spread), well above the known-bias floor.
+    16 sessions x 8 pairings x 9 dof, neighbouring pairings sharing a position (~400 independent): the pooled
+    rms std is known to ~4 %, 12 % is 3 sigma; the session means (~40 independent) to ~11 %: 35 %."""
+    std, theory, err, sigma = [], [], [], []
+    for seed in range(16):
+        s = synth_session([45.0 * k for k in range(80)], fs=10.0, seed=600 + seed, bi=NOISE.bias_instability,
+                          rrw=NOISE.rrw, move_s=6.0)
+        nf = nfm.find_north(s, "redundant", grade=CVG)
+        spread = nf.theory["pairing_spread"]
+        std.append(nf.detail.std)
+        theory.append(spread.turn_std)
+        err.append(nfm.angle_diff(nf.detail.mean, nf.true_azimuth))
+        sigma.append(spread.mean_sigma)
+    rms = lambda x: float(np.sqrt(np.mean(np.square(x))))  # noqa: E731
+    assert rms(std) == pytest.approx(rms(theory), rel=0.12)
+    assert rms(err) == pytest.approx(rms(sigma), rel=0.35)
+    assert rms(theory) > 1.8 * nf.theory["allan_unit_sigma"]  # the bias wander, not the floor, dominates
+    res, summary = nfm.to_result(nf)
+    row = res["redundant"]["pairings"][0]
+    assert row["theory_std_mrad"] == pytest.approx(spread.turn_std[0] * 1e3)
+    assert any("expected from the noise model with the bias wander" in line for line in summary)
+
+
+def test_fit_harmonic_stays_unweighted_with_one_residual_per_axis():
+    """Two positions, the bias given: four readings, two unknowns; per-axis weights from one residual each would
+    only add noise: the estimate equals the plain least squares."""
+    from workbench.analysis.northfinding_fit import harmonic_design
+
+    s = synth_session([0.0, 45.0], seed=3)
+    obs = nfm.static_observations(s, 2.0)
+    geom = nfm.AxisGeometry.from_mount(s.step(0).mount, np.radians(1.0))
+    bias = np.array([1e-4, -8e-5, 2e-3])
+    got = nfm.fit_harmonic(obs, geom, LAT, bias=bias).azimuth
+    a = np.vstack([harmonic_design(obs, geom, i) for i in (0, 1)])
+    y = (obs.rate - bias)[:, :2].T.ravel()  # axis-major, as the design
+    c, sn = np.linalg.lstsq(a, y, rcond=None)[0]
+    assert got == pytest.approx(np.arctan2(sn, c), abs=1e-12)
+
+
 # -- bad input ----------------------------------------------------------------------------
 
 def test_tilted_axes_are_an_error_naming_the_step():

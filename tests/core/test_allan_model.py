@@ -8,7 +8,8 @@ import allantools
 import numpy as np
 import pytest
 
-from workbench.allan_model import FLICKER_AVAR, allan_deviation, allan_variance, avar_basis, dead_time_variance
+from workbench.allan_model import (FLICKER_AVAR, allan_deviation, allan_variance, avar_basis, dead_time_variance,
+                                   window_mean_covariance)
 from workbench.sim.noise import NoiseProcess
 
 
@@ -83,3 +84,14 @@ def test_dead_time_variance_matches_the_simulated_noise():
     expected = dead_time_variance(tau, spacing, bias_instability=b, rrw=k)
     assert expected / allan_variance(tau, bias_instability=b, rrw=k) > 1.7
     assert measured / expected == pytest.approx(1.0, abs=0.12)
+
+
+def test_window_mean_covariance_of_contrasts():
+    """A difference of two window means is dead_time_variance (x2); a mean minus the mean of all follows the
+    direct sum over pairs; white noise alone gives N²/T on the diagonal and zero off it for disjoint windows."""
+    terms = (1e-3, 2e-4, 3e-6, 1e-3)
+    c = window_mean_covariance([0.0, 70.0], [58.0, 128.0], *terms)
+    w = np.array([-1.0, 1.0])
+    assert w @ c @ w == pytest.approx(2 * dead_time_variance(58.0, 70.0, *terms), rel=1e-12)
+    white = window_mean_covariance([0.0, 10.0, 30.0], [5.0, 20.0, 31.0], white=2.0)
+    np.testing.assert_allclose(white, np.diag([4.0 / 5.0, 4.0 / 10.0, 4.0 / 1.0]), atol=1e-12)

@@ -189,7 +189,9 @@ def _theory(method: str, nf_parts: dict, noise: NoiseTerms | None, series_fn, se
     """Theoretical per-unit 1-sigma (rad) from ARW alone and from the ADEV at the unit's averaging time.
 
     A maytag pair's ``nf_parts["spacing"]`` (s between the starts of its two averages) makes the
-    grade's ADEV the one with that dead time; the data's own ADEV (no noise model) has none.
+    grade's ADEV the one with that dead time; the data's own ADEV (no noise model) has none. With a
+    grade, the redundant method also gets ``pairing_spread`` (:mod:`northfinding_spread`: the std
+    over turns and the sigma of the session mean per pairing, bias wander included).
     """
     from workbench.analysis import northfinding_theory as th
 
@@ -206,6 +208,13 @@ def _theory(method: str, nf_parts: dict, noise: NoiseTerms | None, series_fn, se
         white = np.full(3, np.nan)  # no ARW without a noise model: not observed
         source = f"data: overlapping ADEV at {tau:.1f} s of the Earth-rate-free series"
     out = {"source": source, "tau": float(tau), "spacing": float(nf_parts.get("spacing", tau)), "adev_at_dwell": adev}
+    if method == "redundant" and noise is not None:
+        from workbench.analysis.northfinding_spread import redundant_spread
+
+        obs, per_turn, azimuth, known = nf_parts["spread_inputs"]
+        out["pairing_spread"] = redundant_spread(obs, geom, lat, per_turn, azimuth, known, {
+            "arw": noise.arw, "bias_instability": noise.bias_instability, "rrw": noise.rrw,
+            "quantization": noise.quantization})
     for key, sig in (("arw_unit_sigma", white), ("allan_unit_sigma", adev)):
         if not np.all(np.isfinite(sig[hz])):
             out[key] = float("nan")
@@ -257,8 +266,10 @@ def _redundant(session, obs, geom, lat, drift, where, positions_per_turn, bias, 
     sigma = float(np.std([circular_mean(d.azimuth[t]) for t in range(n_turns)], ddof=1) / np.sqrt(n_turns)) \
         if n_turns >= 3 else fit.azimuth_sigma
     unit_az = d.azimuth.ravel()
+    per_turn = positions_per_turn or 8
     return _MethodFit(fit, "pairing estimate", unit_az, np.repeat(d.turn_time, len(d.pairings)),
-                      circular_mean(unit_az), d, azimuth_sigma=sigma)
+                      circular_mean(unit_az), d, azimuth_sigma=sigma,
+                      parts={"spread_inputs": (obs.subset(np.argsort(obs.t)), per_turn, d.mean, bias is not None)})
 
 
 def _per_unit(obs, groups, geom, lat, where, fit, units) -> _MethodFit:

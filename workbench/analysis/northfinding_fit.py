@@ -19,6 +19,7 @@ from workbench.angles import wrap_2pi
 from workbench.earth import EARTH_RATE
 from workbench.errors import AnalysisError
 
+MIN_REWEIGHT_DOF = 3  # residual degrees of freedom per level axis below which fit_harmonic stays unweighted
 
 # -- closed forms (eq. 4.3, 4.6) ----------------------------------------------------------
 
@@ -91,7 +92,7 @@ class HarmonicFit:
         return self.bias + earth - geometry.down * EARTH_RATE * np.sin(latitude)
 
 
-def _design(obs: Observations, geom: AxisGeometry, axis: int) -> np.ndarray:
+def harmonic_design(obs: Observations, geom: AxisGeometry, axis: int) -> np.ndarray:
     """Columns (c, s) = (Omega_N cos psi, Omega_N sin psi) for one axis: g (cos(al+a), -sin(al+a))."""
     ca, sa = np.cos(geom.axis_angle[axis]), np.sin(geom.axis_angle[axis])
     cos_t = ca * obs.cos_angle - sa * obs.sin_angle  # mean cos(alpha + a)
@@ -107,7 +108,9 @@ def fit_harmonic(obs: Observations, geom: AxisGeometry, latitude: float, drift: 
     (and drift with ``drift=True``). Vertical axes only give their bias (the known vertical
     Earth rate and the table rate are removed). With ``bias`` (3,) rad/s given, biases are
     not fitted but subtracted (the redundant configuration). Rows are weighted per axis by
-    the inverse residual variance of a first unweighted pass. Angles rad, rates rad/s.
+    the inverse residual variance of a first unweighted pass when each axis leaves at least
+    :data:`MIN_REWEIGHT_DOF` residual degrees of freedom (else unweighted: a variance from one or
+    two residuals makes the weights, and the estimate, noisier). Angles rad, rates rad/s.
     """
     check_latitude(latitude, where)
     n = len(obs)
@@ -129,7 +132,7 @@ def fit_harmonic(obs: Observations, geom: AxisGeometry, latitude: float, drift: 
     blocks, rhs, axis_of = [], [], []
     for k, i in enumerate(hz):
         cols = np.zeros((n, n_par))
-        cols[:, :2] = _design(obs, geom, i)
+        cols[:, :2] = harmonic_design(obs, geom, i)
         if fit_bias:
             cols[:, 2 + n_per * k] = 1.0
             if drift:
@@ -139,7 +142,10 @@ def fit_harmonic(obs: Observations, geom: AxisGeometry, latitude: float, drift: 
         axis_of.append(np.full(n, i))
     a_mat, b_vec, ax = np.vstack(blocks), np.concatenate(rhs), np.concatenate(axis_of)
     w = np.ones_like(b_vec)
-    for _ in range(1 if exact else 2):  # unweighted, then weighted by per-axis residual variance
+    # unweighted, then weighted by per-axis residual variance when each axis leaves enough residual
+    # degrees of freedom to estimate it (with one or two, the weights are noise and the estimate worse)
+    reweight = not exact and (len(b_vec) - n_par) / len(hz) >= MIN_REWEIGHT_DOF
+    for _ in range(2 if reweight else 1):
         sol, *_ = np.linalg.lstsq(a_mat * w[:, None], b_vec * w, rcond=None)
         res = b_vec - a_mat @ sol
         dof = max(len(b_vec) - n_par, 1)

@@ -27,8 +27,9 @@ def to_result(nf: NorthFinding) -> tuple[dict, list[str]]:
     ``pair_times_s``, ``pair_std_mrad``, ``units``, ``gyro_bias`` (3,) rad/s and its sigma,
     ``earth_rate_amplitude`` rad/s with ``earth_rate_expected`` = Omega_e cos lat,
     ``theory`` {``arw_pair_sigma_mrad``, ``allan_pair_sigma_mrad``, ``source``,
-    ``averaging_time_s``, ``adev_at_dwell``}, ``azimuth_error_mrad`` when the table's zero
-    azimuth is known, ``redundant`` (per pairing) for that method.
+    ``averaging_time_s``, ``pair_spacing_s``, ``adev_at_dwell``}, ``azimuth_error_mrad`` when the
+    table's zero azimuth is known, ``redundant`` (per pairing, with ``theory_std_mrad`` and
+    ``theory_mean_sigma_mrad`` from the grade's noise, bias wander included) for that method.
     """
     from workbench.units import fmt
 
@@ -55,11 +56,15 @@ def to_result(nf: NorthFinding) -> tuple[dict, list[str]]:
     }
     if nf.azimuth_error is not None:
         res["azimuth_error_mrad"] = nf.azimuth_error * 1e3
+    spread = th.get("pairing_spread")
     if isinstance(nf.detail, RedundantResult):
         d = nf.detail
         res["redundant"] = {"bias_source": d.bias_source, "pairings": [
             {"pairing_deg": lab, "mean_deg": float(np.degrees(wrap_2pi(m))), "std_mrad": _json_num(s * 1e3),
-             "n": int(d.azimuth.shape[0])} for lab, m, s in zip(d.pairings, d.mean, d.std)]}
+             "n": int(d.azimuth.shape[0]),
+             "theory_std_mrad": None if spread is None else _json_num(spread.turn_std[k] * 1e3),
+             "theory_mean_sigma_mrad": None if spread is None else _json_num(spread.mean_sigma[k] * 1e3)}
+            for k, (lab, m, s) in enumerate(zip(d.pairings, d.mean, d.std))]}
     summary = [
         f"azimuth of body x at table zero: {res['azimuth_deg']:.4f} ± {np.degrees(nf.azimuth_sigma):.2g}° (1σ = "
         f"{nf.azimuth_sigma * 1e3:.3g} mrad, {len(nf.unit_azimuth)} {nf.units}s)",
@@ -74,8 +79,11 @@ def to_result(nf: NorthFinding) -> tuple[dict, list[str]]:
     if nf.azimuth_error is not None:
         summary.append(f"error against the table's known zero azimuth: {nf.azimuth_error * 1e3:+.3g} mrad")
     if isinstance(nf.detail, RedundantResult):
-        summary.append(f"redundant: bias {nf.detail.bias_source}; the theory is the noise floor with the bias known, "
-                       "the spread adds the bias wander over the session (thesis: thermal drift)")
+        summary.append(f"redundant: bias {nf.detail.bias_source}; the theory above is the noise floor with the bias "
+                       "known" + ("" if spread is None or not np.isfinite(nf.detail.std).any() else
+                                  f"; std over turns {np.nanmedian(nf.detail.std) * 1e3:.3g} mrad (median of the "
+                                  f"pairings), {np.median(spread.turn_std) * 1e3:.3g} mrad expected from the noise "
+                                  "model with the bias wander over the session"))
     if nf.ambiguous:
         summary.append("one level axis (eq. 4.3): the azimuth may be mirrored (psi or -psi about the pair's home)")
     return res, summary
