@@ -97,3 +97,37 @@ def test_a_constant_record_is_one_line_naming_the_file_and_column(db, tmp_path, 
     lines = captured.err.strip().splitlines()
     assert len(lines) == 1 and "Traceback" not in captured.err
     assert f"{path}: column data: the deviation is zero at every tau" in lines[0]
+
+
+def _one_line(capsys) -> str:
+    """The single stderr line of a refused command (no traceback)."""
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in captured.err, captured.err
+    return lines[0]
+
+
+@pytest.mark.parametrize("name,text,args,match", [
+    ("header.csv", "t,gx\n", [], "0 sample(s): too few to find the sample rate from the time column"),
+    ("header.csv", "t,gx\n", ["--rate", "10"], "0 usable samples"),
+    ("t_only.csv", "t\n0\n0.1\n0.2\n", [], "no rate column besides t, time and step"),
+    ("t_only.csv", "t\n0\n0.1\n0.2\n", ["--stat", "adev"], "no rate column besides t, time and step"),
+    # +-1e308 overflows the deviation to NaN, which read as "a constant record"
+    ("huge.txt", "1e308\n-1e308\n" * 500, ["--rate", "10"], "column data: value 1e+308 at row 1 is beyond ±1e+100"),
+    ("huge.txt", "1e308\n-1e308\n" * 500, ["--rate", "10", "--stat", "adev", "--data-type", "phase"],
+     "column data: value 1e+308 at row 1"),
+])
+def test_a_degenerate_allan_record_is_one_line_naming_it(db, tmp_path, capsys, name, text, args, match):
+    path = tmp_path / name
+    path.write_text(text)
+    assert main(["allan", str(path), *args]) == 2
+    assert f"{path}: {match}" in _one_line(capsys)
+
+
+@pytest.mark.parametrize("rate", ["0", "-5", "nan", "inf", "1e308", "1e-308"])
+@pytest.mark.parametrize("stat", [[], ["--stat", "oadev"]])
+def test_an_allan_rate_out_of_range_is_refused_before_the_record_is_read(db, tmp_path, capsys, rate, stat):
+    path = tmp_path / "x.txt"
+    path.write_text("".join(f"{(-1) ** k * 0.001 * (k % 7)}\n" for k in range(1000)))
+    assert main(["allan", str(path), "--rate", rate, *stat]) == 2
+    assert _one_line(capsys).startswith(f"error: --rate {float(rate)!r}: expected a sample rate in 1e-06..1e+07 Hz")

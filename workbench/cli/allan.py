@@ -26,8 +26,8 @@ import typer
 from workbench.cli import out, styled
 from workbench.cli.allan_csv import (CURVE_COLUMNS, FAMILY_COLUMNS, GMWM_COLUMNS, curve_rows,  # noqa: F401
                                      family_rows, write_csv)
-from workbench.cli.allan_record import (RATE_TOLERANCE, TEXT_SUFFIXES, TIME_COLUMNS, load_record,  # noqa: F401
-                                        quantity_of, rate_from_time)
+from workbench.cli.allan_record import (RATE_TOLERANCE, TEXT_SUFFIXES, TIME_COLUMNS, check_rate,  # noqa: F401
+                                        load_record, quantity_of, rate_from_time)
 from workbench.cli.allan_tables import TERM_NAMES, TERM_ROWS, print_terms, terms_tables  # noqa: F401
 from workbench.cli.allan_variants import parse_taus, run_family, run_gmwm  # noqa: F401
 from workbench.errors import AnalysisError
@@ -134,6 +134,7 @@ def _streamed(source: Path, cols: list[str] | None, rate: float | None, taus: st
     if source.suffix.lower() != ".parquet" or rate is None:
         raise AnalysisError(f"{source}: streaming (--stream, or a record of {STREAM_SAMPLES:.0e} samples or more) "
                             "needs a .parquet file and --rate")
+    rate = check_rate(rate)
     if cols is None:
         import pyarrow.parquet as pq
 

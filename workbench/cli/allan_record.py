@@ -20,6 +20,10 @@ if TYPE_CHECKING:
 TIME_COLUMNS = ("t", "time")
 TEXT_SUFFIXES = (".txt", ".dat")
 RATE_TOLERANCE = 0.01  # relative spread of sample intervals accepted as a constant rate
+RATE_RANGE_HZ = (1e-6, 1e7)  # a --rate outside this is a typo (the import profiles' range: a sample a
+# fortnight to 10 MHz); its taus would overflow or underflow
+MAX_ABS = 1e100  # |sample| beyond this is no measured rate or phase in SI: its squared differences
+# (up to (N |x| / rate)^2 summed over N) would overflow float64 and read as a constant record
 PIECE_ROWS = 1 << 20  # rows decoded at a time from a Parquet file (row groups up to this size are read whole)
 
 
@@ -44,8 +48,10 @@ def rate_from_time(t: np.ndarray, source: str) -> tuple[float, np.ndarray]:
     from workbench.analysis.allan import column_median
 
     dt = np.diff(np.asarray(t, float))
-    if len(dt) == 0 or np.any(~np.isfinite(dt)) or np.any(dt <= 0):
-        row = int(np.argmax(~(dt > 0))) + 1 if len(dt) else 0
+    if len(dt) == 0:
+        raise AnalysisError(f"{source}: {len(t)} sample(s): too few to find the sample rate from the time column")
+    if np.any(~np.isfinite(dt)) or np.any(dt <= 0):
+        row = int(np.argmax(~(dt > 0))) + 1
         raise AnalysisError(f"{source}: time column is not strictly increasing (row {row})")
     nominal = float(column_median(dt[:, None])[0])
     gaps = np.flatnonzero(dt > 1.5 * nominal)
@@ -62,7 +68,43 @@ def load_record(path: Path, columns: list[str] | None, rate: float | None) -> tu
     """Rate samples (N, C) SI, rate (Hz), column names and a source label from a session or file.
 
     Gaps in a time column become NaN rows, so the gap policy decides what happens to them.
+    A ``rate`` outside :data:`RATE_RANGE_HZ`, no rate column, or a finite sample beyond
+    :data:`MAX_ABS` is an AnalysisError naming the option, the file or the column and row.
     """
+    y, fs, cols, label = _read_record(path, columns, None if rate is None else check_rate(rate))
+    if not cols:
+        raise AnalysisError(f"{path}: no rate column besides {', '.join(TIME_COLUMNS)} and step "
+                            "(choose the rate columns with --columns)")
+    _check_values(y, cols, label)
+    return y, fs, cols, label
+
+
+def check_rate(rate: float) -> float:
+    """``rate`` (Hz) if finite and within :data:`RATE_RANGE_HZ`, else an AnalysisError naming ``--rate``."""
+    lo, hi = RATE_RANGE_HZ
+    if not lo <= rate <= hi:  # NaN fails too
+        raise AnalysisError(f"--rate {rate!r}: expected a sample rate in {lo:g}..{hi:g} Hz")
+    return float(rate)
+
+
+def _check_values(y: np.ndarray, cols: list[str], source: str) -> None:
+    """AnalysisError naming the column and row of the first finite sample beyond :data:`MAX_ABS`
+    (NaN and infinities are gaps, for the gap policy; two NaN-ignoring reductions, no copy)."""
+    import numpy as np
+
+    if y.size == 0 or (np.fmax.reduce(y, axis=None) <= MAX_ABS and np.fmin.reduce(y, axis=None) >= -MAX_ABS):
+        return
+    with np.errstate(invalid="ignore"):
+        bad = np.isfinite(y) & (np.abs(y) > MAX_ABS)
+    if bad.any():
+        row, j = np.unravel_index(int(np.argmax(bad)), bad.shape)
+        raise AnalysisError(f"{source}: column {cols[j]}: value {y[row, j]:.4g} at row {row + 1} is beyond "
+                            f"±{MAX_ABS:.0e}: not a measured rate or phase in SI")
+
+
+def _read_record(path: Path, columns: list[str] | None,
+                 rate: float | None) -> tuple[np.ndarray, float, list[str], str]:
+    """:func:`load_record` before its checks of the columns and values."""
     import numpy as np
 
     if path.is_dir():
@@ -210,6 +252,8 @@ def _columns(df: pd.DataFrame, cols: list[str], path: Path) -> np.ndarray:
     missing = [c for c in cols if c not in df.columns]
     if missing:
         raise AnalysisError(f"{path}: no column(s) {', '.join(missing)} (has {', '.join(map(str, df.columns))})")
+    if df.empty:  # a header alone: pandas types its columns as text
+        return np.empty((0, len(cols)))
     for c in cols:  # a column with a non-numeric cell is refused, never dropped or turned into NaN
         if not pd.api.types.is_numeric_dtype(df[c]) or pd.api.types.is_bool_dtype(df[c]):
             bad = np.flatnonzero((pd.to_numeric(df[c], errors="coerce").isna() & df[c].notna()).to_numpy())
