@@ -59,7 +59,7 @@ from pathlib import Path
 import numpy as np
 
 from workbench.allan_model import FLICKER_AVAR, avar_basis
-from workbench.analysis.allan_ci import DeviationCI, chi2_ppf
+from workbench.analysis.allan_ci import MAX_POINTS_ID, DeviationCI, chi2_ppf
 from workbench.analysis.allan_report import CALSET_NAMES, AllanAnalysis  # noqa: F401 (re-exported)
 from workbench.analysis.allan_terms import TERMS
 from workbench.analysis.small_solvers import minimize_bounded, nnls, root_bracket
@@ -67,6 +67,8 @@ from workbench.analysis.small_solvers import minimize_bounded, nnls, root_bracke
 FLICKER = FLICKER_AVAR  # AVAR per B^2; ADEV floor 0.664 B (workbench.allan_model)
 CORRELATION = 2.0  # overlapping AVAR points at octave taus share about half their information:
 # weighted chi-squared differences are divided by this before model comparison
+SLOW_WINDOW_S = 10.0  # s, longest averaging time of the rate mean square behind the slow rate (SlowRate)
+SLOW_MIN_WINDOWS = 20  # windows of it the record must hold
 _IRLS_ITER = 30
 _IRLS_STEP = 1e-4  # change of the model AVAR, in each point's standard deviation, at which the IRLS stops
 
@@ -85,13 +87,42 @@ def _nnls_warm(a: np.ndarray, b: np.ndarray, passive: np.ndarray | None) -> tupl
     return x, x > 0
 
 
-def basis(tau: np.ndarray, ratio: float = np.inf) -> np.ndarray:
+def basis(tau: np.ndarray, ratio: float = np.inf, slow: SlowRate | None = None, q2: float = 0.0) -> np.ndarray:
     """AVAR basis (K, 5) at taus (s): 3 h/tau^2, 1/tau, 2 ln2/pi, tau/3, tau^2/2 (:func:`workbench.allan_model.avar_basis`),
-    with the quantization shape h of :func:`quantization_shape` for ``ratio`` = N^2 / Q^2 (1/s; inf: h = 1)."""
+    with the quantization shape h of :func:`quantization_shape` for ``ratio`` = N^2 / Q^2 (1/s; inf: h = 1), the
+    record's slow rate ``slow`` and ``q2`` = Q^2 (u^2 s^2)."""
     a = avar_basis(np.atleast_1d(np.asarray(tau, float)))
     if np.isfinite(ratio):
-        a[:, 0] *= quantization_shape(a[:, 1] ** -1, ratio)
+        a[:, 0] *= quantization_shape(a[:, 1] ** -1, ratio, slow, q2)
     return a
+
+
+@dataclass(frozen=True)
+class SlowRate:
+    """What moves a record's integral between samples besides white noise: the mean square M(tau) (u^2) of
+    the rate without its white noise, averaged over tau, mean included, over the whole record.
+
+    ``M(tau) = at_1s - flicker ln(tau / 1 s)``: flicker noise of one-sided PSD h_-1 / f (h_-1 = B^2 / pi) adds
+    h_-1 ln(W / tau) between averaging times W and tau (the Frullani integral of its PSD against sinc^2),
+    rate random walk and the record's mean are constant over the short taus where the shape matters.
+    """
+
+    at_1s: float
+    flicker: float
+
+    def mean_square(self, tau: np.ndarray) -> np.ndarray:
+        """M(tau) (u^2) at taus (s), never below 0."""
+        return np.maximum(self.at_1s - self.flicker * np.log(np.asarray(tau, float)), 0.0)
+
+    @classmethod
+    def from_record(cls, window: float, mean_square: float, n2: float, q2: float, b2: float) -> SlowRate:
+        """From the record's mean square ``mean_square`` (u^2) of its rate averaged over ``window`` (s) and the
+        fitted N^2 (u^2/Hz), Q^2 (u^2 s^2), B^2 (u^2): the white part N^2 / W and the quantization part
+        2 Q^2 (1 - rho(W)) / W^2 of the averaged rate removed, the flicker part extrapolated with h_-1 = B^2 / pi."""
+        rho = float(_sawtooth_correlation(np.array(n2 * window / (12.0 * q2)))) if q2 > 0 else 0.0
+        at_w = max(mean_square - n2 / window - 2.0 * q2 * (1.0 - rho) / window ** 2, 0.0)
+        h = b2 * FLICKER / (2.0 * np.log(2.0))
+        return cls(at_w + h * np.log(window), h)
 
 
 def _sawtooth_correlation(x: np.ndarray) -> np.ndarray:
@@ -106,17 +137,25 @@ def _sawtooth_correlation(x: np.ndarray) -> np.ndarray:
     return 6.0 / np.pi ** 2 * total
 
 
-def quantization_shape(tau: np.ndarray, ratio: float) -> np.ndarray:
+def quantization_shape(tau: np.ndarray, ratio: float, slow: SlowRate | None = None, q2: float = 0.0) -> np.ndarray:
     """h(tau) in [0, 1] of the quantization term ``3 Q^2 h / tau^2`` beside white noise N (module docstring).
 
     ``ratio`` = N^2 / Q^2 (1/s; N u/sqrt(Hz), Q u*s); inf gives the IEEE 952 form h = 1 and 0
     (no white noise) the same, since then nothing moves the integral between steps but the slow terms.
+    ``slow`` (with ``q2`` = Q^2, u^2 s^2): the record's slow rate, whose integral over tau adds a variance
+    M(tau) tau^2 to the white noise's N^2 tau (Gaussian to second order in the rate's mean: valid while the
+    mean moves the integral by well under a step within the correlation time 12 Q^2 / N^2).
     """
     tau = np.asarray(tau, float)
     if not np.isfinite(ratio) or ratio <= 0:
         return np.ones_like(tau)
-    x = ratio * tau / 12.0
-    return np.clip(1.0 - 4.0 / 3.0 * _sawtooth_correlation(x) + _sawtooth_correlation(2.0 * x) / 3.0, 0.0, 1.0)
+
+    def x(t: np.ndarray) -> np.ndarray:  # increment variance over t, in units of the squared step 12 Q^2
+        drift = slow.mean_square(t) * t ** 2 / q2 if slow is not None and q2 > 0 else 0.0
+        return (ratio * t + drift) / 12.0
+
+    return np.clip(1.0 - 4.0 / 3.0 * _sawtooth_correlation(x(tau)) + _sawtooth_correlation(x(2.0 * tau)) / 3.0,
+                   0.0, 1.0)
 
 
 @dataclass(frozen=True)
@@ -146,10 +185,11 @@ class ChannelNoise:
     chi2_red: float
     read_off: dict[str, float]
     quantization_ratio: float = np.inf  # N^2 / Q^2 (1/s) of the quantization shape (inf: IEEE form)
+    slow_rate: SlowRate | None = None  # the record's slow rate in the quantization shape (None: white only)
 
     def design(self, tau: np.ndarray) -> np.ndarray:
         """The fitted model's basis (K, 5) at taus (s), quantization shape included."""
-        return basis(tau, self.quantization_ratio)
+        return basis(tau, self.quantization_ratio, self.slow_rate, float(self.theta[0]))
 
     def model_adev(self, tau: np.ndarray) -> np.ndarray:
         """ADEV of the fitted model at taus (s)."""
@@ -159,6 +199,7 @@ class ChannelNoise:
 _X_RANGE = (1e-4, 2.0)  # x = N^2 tau_min / (12 Q^2) at the ends of the searched quantization shapes:
 # above 2 the shape h is 1 within 1e-17 at every tau (the IEEE form), below 1e-4 h ~ 0 at the first taus
 _SHAPES_PER_DECADE = 3  # log grid of the shape search, refined by Brent's method around its best point
+_SLOW_PASSES = 2  # fits with the slow rate estimated from the previous one (M / Q^2 moves Q by ~1 %: 2 suffice)
 _LOG_R_TOL = 1e-2  # Brent's tolerance on ln(N^2 / Q^2) (the deviance is then within ~1e-3 of the 1-D minimum)
 
 
@@ -196,6 +237,14 @@ class _Family:
         n = int(np.ceil(np.log10(_X_RANGE[1] / _X_RANGE[0]) * _SHAPES_PER_DECADE)) + 1
         self.log_r = np.linspace(np.log(_X_RANGE[0] * scale), np.log(self.r_top), n)
         self._columns: dict[float, np.ndarray] = {}
+        self.slow: SlowRate | None = None
+        self.q2_ref = 0.0
+
+    def set_slow(self, slow: SlowRate | None, q2_ref: float) -> None:
+        """Shape the quantization term with the record's slow rate ``slow``; M / Q^2 uses the Q^2 a model
+        holds (a profile point of Q, or N^2 / r for one of N) or else ``q2_ref`` (u^2 s^2, the last full fit's)."""
+        self.slow, self.q2_ref = slow, q2_ref
+        self._columns.clear()
 
     def _irls(self, cols: np.ndarray, offset: np.ndarray, start: np.ndarray,
               cutoff: float = np.inf) -> tuple[np.ndarray, np.ndarray, float]:
@@ -264,12 +313,14 @@ class _Family:
     def shaped(self, log_r: float, fixed: dict[int, float], start: np.ndarray, cutoff: float = np.inf) -> _Fit:
         """Best model with N^2 = r Q^2 (r = exp(log_r)) and the terms in ``fixed`` held."""
         r = float(np.exp(log_r))
-        col = self._columns.get(log_r)
-        if col is None:
-            col = self.plain[:, 0] * quantization_shape(self.tau, r) + r * self.plain[:, 1]  # per Q^2
-            if len(self._columns) < 4 * len(self.log_r):  # the grid's columns are reused by every search
-                self._columns[log_r] = col
         q_fixed = fixed[0] if 0 in fixed else (fixed[1] / r if 1 in fixed else None)
+        held = self.slow is not None and q_fixed is not None  # the shape depends on the Q^2 held
+        col = None if held else self._columns.get(log_r)
+        if col is None:
+            q2 = q_fixed if held else self.q2_ref
+            col = self.plain[:, 0] * quantization_shape(self.tau, r, self.slow, q2) + r * self.plain[:, 1]  # per Q^2
+            if not held and len(self._columns) < 4 * len(self.log_r):  # grid columns are reused by every search
+                self._columns[log_r] = col
         q, _, dev, rest, model = self._linear(col, q_fixed, None, None, fixed, start, cutoff)
         return _Fit(dev, np.array([q, r * q, *rest]), r, model)
 
@@ -391,26 +442,46 @@ def _select(family: _Family, full: _Fit) -> list[int]:
 
 
 def _dominant_range(k: int, theta: np.ndarray, tau_lo: float, tau_hi: float,
-                    ratio: float = np.inf) -> tuple[float, float] | None:
+                    ratio: float = np.inf, slow: SlowRate | None = None) -> tuple[float, float] | None:
     """Tau range (s) within [tau_lo, tau_hi] where term k is the largest model contribution."""
     grid = np.logspace(np.log10(tau_lo), np.log10(tau_hi), 400)
-    parts = basis(grid, ratio) * theta
+    parts = basis(grid, ratio, slow, float(theta[0])) * theta
     top = (np.argmax(parts, axis=1) == k) & (parts[:, k] > 0)
     return (float(grid[top].min()), float(grid[top].max())) if top.any() else None
 
 
-def fit_channel(tau: np.ndarray, dev: np.ndarray, edf: np.ndarray, hi: np.ndarray, column: str = "") -> ChannelNoise:
+def _fit_family(tau: np.ndarray, avar: np.ndarray, edf: np.ndarray,
+                mean_square: tuple[float, float] | None) -> tuple[_Family, _Fit]:
+    """The model family of the points and its best full model: with quantization found and the record's
+    ``mean_square`` (as :func:`fit_channel`) given, the slow rate estimated from the fitted N, Q, B and the
+    family refitted with it, :data:`_SLOW_PASSES` times (M / Q^2 with the previous pass's Q)."""
+    family = _Family(tau, avar, edf)
+    full = family.best({}, avar)
+    if mean_square is None or not (full.theta[0] > 0 and np.isfinite(full.ratio)):
+        return family, full
+    for _ in range(_SLOW_PASSES):
+        family.set_slow(SlowRate.from_record(*mean_square, *full.theta[[1, 0, 2]]), float(full.theta[0]))
+        full = family.best({}, full.model)
+        if not (full.theta[0] > 0 and np.isfinite(full.ratio)):  # the shape gave quantization up: none
+            family.set_slow(None, 0.0)
+            return family, family.best({}, avar)
+    return family, full
+
+
+def fit_channel(tau: np.ndarray, dev: np.ndarray, edf: np.ndarray, hi: np.ndarray, column: str = "",
+                mean_square: tuple[float, float] | None = None) -> ChannelNoise:
     """Fit the IEEE 952 terms to one channel's ADEV ``dev`` (K,) at ``tau`` (K,) s.
 
     ``edf`` (K,) equivalent degrees of freedom and ``hi`` (K,) upper 95 % ADEV limits, as in
     :class:`workbench.analysis.allan_ci.DeviationCI`. Units: SI of the input rate.
+    ``mean_square`` (W s, u^2): the record's mean square of its rate (mean included) averaged over W
+    (:func:`rate_mean_square`); with quantization it gives the slow rate of the shape (:class:`SlowRate`).
     """
     ok = np.isfinite(dev) & (dev > 0) & np.isfinite(edf) & (edf > 0)
     tau, avar, edf, hi = tau[ok], dev[ok] ** 2, edf[ok], hi[ok]
     if len(tau) == 0:
         raise ValueError(f"{column}: no noise model fits the Allan curve")
-    family = _Family(tau, avar, edf)
-    full = family.best({}, avar)
+    family, full = _fit_family(tau, avar, edf, mean_square)
     ratio = full.ratio
     plain = family.plain  # the IEEE 952 basis (h = 1) of the search starts
     intervals = []
@@ -427,10 +498,10 @@ def fit_channel(tau: np.ndarray, dev: np.ndarray, edf: np.ndarray, hi: np.ndarra
         lo, up = intervals[k]
         if k in cols:
             terms[name] = NoiseTerm(name, float(np.sqrt(full.theta[k])), (float(np.sqrt(lo)), float(np.sqrt(up))), True,
-                                    _dominant_range(k, theta, float(tau.min()), float(tau.max()), ratio))
+                                    _dominant_range(k, theta, float(tau.min()), float(tau.max()), ratio, family.slow))
         else:
             terms[name] = NoiseTerm(name, float("nan"), (0.0, float(np.sqrt(up))), False, None)
-    return ChannelNoise(column, terms, theta, chi2_red, read_offs(tau, np.sqrt(avar)), ratio)
+    return ChannelNoise(column, terms, theta, chi2_red, read_offs(tau, np.sqrt(avar)), ratio, family.slow)
 
 
 def read_offs(tau: np.ndarray, dev: np.ndarray) -> dict[str, float]:
@@ -450,12 +521,31 @@ def read_offs(tau: np.ndarray, dev: np.ndarray) -> dict[str, float]:
     return out
 
 
-def fit_terms(ci: DeviationCI) -> tuple[ChannelNoise, ...]:
-    """Fit every channel of an overlapping-ADEV curve with intervals (``ci.curve.kind == 'oadev'``)."""
+def fit_terms(ci: DeviationCI, mean_square: tuple[float, np.ndarray] | None = None) -> tuple[ChannelNoise, ...]:
+    """Fit every channel of an overlapping-ADEV curve with intervals (``ci.curve.kind == 'oadev'``);
+    ``mean_square`` (W s, (C,) u^2) as :func:`rate_mean_square` returns it, for the quantization shape."""
     if ci.curve.kind != "oadev":
         raise ValueError(f"noise-term fit needs an overlapping Allan deviation, not {ci.curve.kind}")
     c = ci.curve
-    return tuple(fit_channel(c.tau, c.dev[:, j], ci.edf[:, j], ci.hi[:, j], col) for j, col in enumerate(c.columns))
+    return tuple(fit_channel(c.tau, c.dev[:, j], ci.edf[:, j], ci.hi[:, j], col,
+                             None if mean_square is None else (mean_square[0], float(mean_square[1][j])))
+                 for j, col in enumerate(c.columns))
+
+
+def slow_window(m: np.ndarray, rate: float, n_samples: int) -> int | None:
+    """Index into the averaging factors ``m`` of the window for :func:`rate_mean_square`: the longest
+    m / rate up to :data:`SLOW_WINDOW_S` with at least :data:`SLOW_MIN_WINDOWS` windows in ``n_samples``
+    (None: the record is too short)."""
+    ok = np.flatnonzero((m <= SLOW_WINDOW_S * rate) & (m * SLOW_MIN_WINDOWS <= n_samples))
+    return int(ok[-1]) if len(ok) else None
+
+
+def rate_mean_square(z: np.ndarray, m: int, rate: float, mean: np.ndarray) -> tuple[float, np.ndarray]:
+    """(W, mean square (C,)) of the rate averaged over consecutive windows of W = m / rate s, mean included:
+    from ``z`` (C, J) the mean-removed phase decimated by m, ``x[:, ::m]`` (:func:`workbench.analysis.allan.phase`,
+    u*s) and ``mean`` (C,) the rate's mean (u). Units u^2 of the rate."""
+    w = m / rate
+    return w, np.mean((np.diff(z, axis=1) / w + np.asarray(mean, float)[:, None]) ** 2, axis=1)
 
 
 # -- a whole record ------------------------------------------------------------------------
@@ -475,9 +565,12 @@ def analyze_record(y: np.ndarray, rate: float, columns: tuple[str, ...] | list[s
     from workbench.analysis.allan_ci import confidence
 
     segments, warnings = allan.prepare_rate_data(y, tuple(columns), source, gap_policy, quantity)
+    mean = np.mean(max(segments, key=len), axis=0)  # before the phase may overwrite the samples
     curve, x = allan.segment_deviation(segments, rate, "oadev", taus, tuple(columns), source, overwrite)
     ci = confidence(curve, x, source=source)
-    return AllanAnalysis(ci, fit_terms(ci), quantity, tuple(warnings))
+    k = slow_window(curve.m, rate, x.shape[1] - 1)
+    ms = None if k is None else rate_mean_square(x[:, ::int(curve.m[k])][:, :MAX_POINTS_ID], int(curve.m[k]), rate, mean)
+    return AllanAnalysis(ci, fit_terms(ci, ms), quantity, tuple(warnings))
 
 
 def analyze_stream(batches: Callable[[], Iterator[np.ndarray]], rate: float, columns: tuple[str, ...] | list[str],
@@ -493,11 +586,13 @@ def analyze_stream(batches: Callable[[], Iterator[np.ndarray]], rate: float, col
     exactly those (at most 0.5 MB per tau and channel), so intervals and terms are those of
     :func:`analyze_record` (up to the ~1e-13 summation-order differences of the deviations).
     """
-    from workbench.analysis.allan_ci import MAX_POINTS_ID, confidence, identify_decimated
+    from workbench.analysis.allan_ci import confidence, identify_decimated
     from workbench.analysis.allan_stream import stream_deviation_from
 
     s = stream_deviation_from(batches, columns, rate, "oadev", taus, tmp_dir=tmp_dir, source=source,
                               quantity=quantity, keep=MAX_POINTS_ID)
     c = s.curve
     ci = confidence(c, alpha=identify_decimated(s.decimated, c.n_samples + 1, c.m, c.kind), source=source)
-    return AllanAnalysis(ci, fit_terms(ci), quantity)
+    k = slow_window(c.m, rate, c.n_samples)
+    ms = None if k is None else rate_mean_square(s.decimated[k], int(c.m[k]), rate, s.mean)
+    return AllanAnalysis(ci, fit_terms(ci, ms), quantity)

@@ -53,11 +53,13 @@ class StreamedDeviation:
     """A streamed deviation curve and the decimated phase kept for noise identification.
 
     ``decimated[k]`` (C, min(ceil(L / m_k), keep)) is the phase ``x[:, ::m_k][:, :keep]`` (rad |
-    m/s; L = N + 1 points) at the curve's factor m_k; empty tuple when ``keep`` was 0.
+    m/s; L = N + 1 points) at the curve's factor m_k; empty tuple when ``keep`` was 0. ``mean`` (C,)
+    the rate's mean (rad/s | m/s^2), removed from the phase.
     """
 
     curve: DeviationCurve
     decimated: tuple[np.ndarray, ...]
+    mean: np.ndarray
 
 
 def _batches(pf: pq.ParquetFile, columns: list[str], rows: int):
@@ -132,7 +134,7 @@ def stream_deviation_from(batches: Batches, columns: list[str] | tuple[str, ...]
                 out[:, c] = _sweep(fh, m, counts, order, n_phase, block, window)
     curve = DeviationCurve(kind, m / rate, m, allan.normalise(kind, out, counts, m, rate), counts, float(rate), n,
                            tuple(columns))
-    return StreamedDeviation(curve, decimated)
+    return StreamedDeviation(curve, decimated, sums / n)
 
 
 def parquet_batches(path: str | Path, columns: list[str] | tuple[str, ...], rows: int = 1 << 20) -> Batches:
