@@ -88,9 +88,9 @@ def _nnls_warm(a: np.ndarray, b: np.ndarray, passive: np.ndarray | None) -> tupl
 
 
 def basis(tau: np.ndarray, ratio: float = np.inf, slow: SlowRate | None = None, q2: float = 0.0) -> np.ndarray:
-    """AVAR basis (K, 5) at taus (s): 3 h/tau^2, 1/tau, 2 ln2/pi, tau/3, tau^2/2 (:func:`workbench.allan_model.avar_basis`),
-    with the quantization shape h of :func:`quantization_shape` for ``ratio`` = N^2 / Q^2 (1/s; inf: h = 1), the
-    record's slow rate ``slow`` and ``q2`` = Q^2 (u^2 s^2)."""
+    """AVAR basis (K, 5) at taus (s): 3 h/tau^2, 1/tau, 2 ln2/pi, tau/3, tau^2/2
+    (:func:`workbench.allan_model.avar_basis`), with the quantization shape h of :func:`quantization_shape`
+    for ``ratio`` = N^2 / Q^2 (1/s; inf: h = 1), the record's slow rate ``slow`` and ``q2`` = Q^2 (u^2 s^2)."""
     a = avar_basis(np.atleast_1d(np.asarray(tau, float)))
     if np.isfinite(ratio):
         a[:, 0] *= quantization_shape(a[:, 1] ** -1, ratio, slow, q2)
@@ -569,7 +569,8 @@ def analyze_record(y: np.ndarray, rate: float, columns: tuple[str, ...] | list[s
     curve, x = allan.segment_deviation(segments, rate, "oadev", taus, tuple(columns), source, overwrite)
     ci = confidence(curve, x, source=source)
     k = slow_window(curve.m, rate, x.shape[1] - 1)
-    ms = None if k is None else rate_mean_square(x[:, ::int(curve.m[k])][:, :MAX_POINTS_ID], int(curve.m[k]), rate, mean)
+    mk = None if k is None else int(curve.m[k])
+    ms = None if mk is None else rate_mean_square(x[:, ::mk][:, :MAX_POINTS_ID], mk, rate, mean)
     return AllanAnalysis(ci, fit_terms(ci, ms), quantity, tuple(warnings))
 
 
