@@ -19,8 +19,14 @@ term with the white noise vanishes, so the quantization term becomes ``3 Q^2 h(t
 with ``h = 1 - 4/3 rho(x) + 1/3 rho(2x)``, ``rho`` the correlation above and
 ``x = N^2 tau / (12 Q^2)`` (:func:`quantization_shape`; h -> 1 for x >> 1, the IEEE form, and
 ~ sqrt(tau) for x << 1, where the classic model overstates the variance by up to 2x at the
-first tau). For the virtual sensor's quantizer it matches the simulated AVAR within 0.6 % at
-every tau (benchmarks/allan_coverage.py). The shape ties Q and N: the ratio r = N^2 / Q^2 is a
+first tau). White noise is not all that moves the integral: the record's slow rate (bias
+instability, rate random walk, its mean) adds M(tau) tau^2 to the increment's variance N^2 tau
+(:class:`SlowRate`, M from the record's 10-s mean square and the fitted N, Q, B); without it the
+shape is exact for white noise alone but 0.4-2 % low at m = 1-8 on a 2-h hg1700 accel record,
+which biased Q by +1.5 %. With it the shape matches the virtual quantizer within 0.2 % at m = 1-64
+(tests/analysis/test_allan_fit.py). A mean moving the integral by a sizeable fraction of a step
+per sample (gravity on a delta-velocity channel) makes the error a deterministic pattern of that
+fraction instead, which this Gaussian form does not describe. The shape ties Q and N: the ratio r = N^2 / Q^2 is a
 parameter of the model (N^2 = r Q^2 enforced), found by a 1-D search of the deviance over r, with
 the edges of no white noise and of h = 1 (the IEEE form, Q = 0 included) in the family
 (:class:`_Family`); the same search runs at every profile point and in every model of the selection.
