@@ -73,10 +73,11 @@ class ThermalModel:
     @staticmethod
     def _poly(coeffs: np.ndarray, dt: np.ndarray) -> np.ndarray:
         """Evaluate per-axis polynomials at temperature offsets ``dt`` (N,) -> (N, 3)."""
-        out = np.zeros((dt.shape[0], 3))
+        out = np.zeros((3, dt.shape[0]))  # axis by axis: each product runs along the N samples
         for k in range(coeffs.shape[1] - 1, -1, -1):  # Horner, highest power first
-            out = out * dt[:, None] + coeffs[:, k]
-        return out
+            out *= dt
+            out += coeffs[:, k, None]
+        return out.T.copy()
 
     def bias_shift(self, temperature_c: np.ndarray) -> np.ndarray:
         """Bias change (N, 3), SI, at unit temperatures ``temperature_c`` (N,) °C."""
