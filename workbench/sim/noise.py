@@ -211,7 +211,9 @@ def round_to_resolution(y: np.ndarray, resolution: np.ndarray) -> np.ndarray:
     For noise well above one LSB this adds white noise of variance LSB² / 12 per sample.
     """
     res = np.asarray(resolution, float)
-    if not np.any(res):
+    active = res > 0
+    if not active.any():
         return y
-    safe = np.where(res > 0, res, 1.0)
-    return np.where(res > 0, np.round(y / safe) * safe, y)
+    out = y.copy()
+    out[:, active] = np.round(y[:, active] / res[active]) * res[active]
+    return out

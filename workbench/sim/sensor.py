@@ -107,13 +107,14 @@ class VirtualIMU:
                 raise WorkbenchError(f"VirtualIMU.measure: {name}: the unit has a {name} triad but no true input")
             if np.shape(value) != (n, 3):
                 raise WorkbenchError(f"VirtualIMU.measure: {name}: expected shape ({n}, 3), got {np.shape(value)}")
-        blocks = [self._measure_block({k: None if v is None else v[a:a + _BLOCK] for k, v in inputs.items()},
-                                      temp_c[a:a + _BLOCK]) for a in range(0, n, _BLOCK)]
-        y = np.vstack([b[0] for b in blocks]) if blocks else np.zeros((0, 3 * len(self.truth.triads)))
+        y, thermometer = np.empty((n, 3 * len(self.truth.triads))), np.empty(n)
+        for a in range(0, n, _BLOCK):
+            y[a:a + _BLOCK], thermometer[a:a + _BLOCK] = self._measure_block(
+                {k: None if v is None else v[a:a + _BLOCK] for k, v in inputs.items()}, temp_c[a:a + _BLOCK])
         result: dict[str, np.ndarray | None] = {"mag": None}
         for i, name in enumerate(self.truth.triads):
             result[name] = y[:, 3 * i:3 * i + 3]
-        result["temp"] = np.concatenate([b[1] for b in blocks]) if blocks else np.zeros(0)
+        result["temp"] = thermometer
         return result
 
     def _measure_block(self, inputs: dict, temp_c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -136,9 +137,9 @@ class VirtualIMU:
             clean = clean * scale + self._on_bias + np.exp(-t / imp.warm_up_tau_s)[:, None] * self._warm
             noise = noise * (1.0 + np.outer(temp_c - imp.noise_t_ref_c, self._noise_tc))
         self._k += n
-        y = clean + noise
-        y = round_to_resolution(self._quantizer.apply(y), self._resolution)
-        y = np.clip(y, -self._range, self._range)
+        noise += clean  # the output before quantization and saturation
+        y = round_to_resolution(self._quantizer.apply(noise), self._resolution)
+        np.clip(y, -self._range, self._range, out=y)
         return y, temp_c + self.truth.temp_sensor_noise_c * self._temp_rng.standard_normal(n)
 
     def state(self) -> dict:
