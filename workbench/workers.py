@@ -13,10 +13,16 @@ WorkbenchError naming its exit code. Ctrl-C reaches the workers too (one process
 stops where it is (a recording makes its rig safe first) and the parent stops them all.
 :func:`usable_workers` says how many processes are worth starting (the CPUs this process may
 run on; ``WORKBENCH_WORKERS`` overrides, 1 means everything runs in the calling process).
+
+In a worker the cyclic garbage collector leaves the objects inherited from the parent alone
+(frozen at the fork: collecting them would touch, and so copy, their pages in every worker) and
+collects its youngest generation every :data:`GC_YOUNG_THRESHOLD` allocations: in a campaign's two
+workers (measured at load 9) about 0.25 s of collector CPU instead of 0.6 s.
 """
 
 from __future__ import annotations
 
+import gc
 import multiprocessing as mp
 import os
 import pickle
@@ -32,6 +38,9 @@ from workbench.errors import WorkbenchError
 # a job handler: (worker memory, job kind, job arguments, emit) -> value; emit(message) sends a
 # progress message to the parent while the job runs
 Handler = Callable[[dict, str, tuple, Callable[[Any], None]], Any]
+# allocations between two collections of the youngest generation in a worker (Python's default: 700);
+# a campaign's jobs make many short-lived containers (figure artists, analysis results)
+GC_YOUNG_THRESHOLD = 10_000
 
 
 def usable_workers(jobs: int) -> int:
@@ -83,6 +92,7 @@ def fresh_std_streams() -> None:
 def _serve(wid: int, inbox, outbox, handler: Handler) -> None:
     """A worker's loop: run each job of its inbox, answer in the outbox, stop at None (or Ctrl-C)."""
     fresh_std_streams()
+    gc.set_threshold(GC_YOUNG_THRESHOLD, *gc.get_threshold()[1:])
     try:
         _jobs(wid, inbox, outbox, handler)
     except KeyboardInterrupt:  # Ctrl-C while waiting for a job: the parent stops too
@@ -117,8 +127,12 @@ class Workers:
         self.busy: dict[int, object] = {}  # worker -> key of the job it runs
         self.processes = [ctx.Process(target=_serve, args=(w, self.inboxes[w], self.outbox, handler),
                                       name=f"workbench-worker-{w}", daemon=True) for w in range(n)]
-        for p in self.processes:
-            p.start()
+        gc.freeze()  # the objects inherited from this process are left out of the workers' collections
+        try:  # (which would otherwise touch, and so copy, every page of them)
+            for p in self.processes:
+                p.start()
+        finally:
+            gc.unfreeze()
 
     @property
     def idle(self) -> list[int]:
