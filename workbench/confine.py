@@ -6,6 +6,8 @@
   base folder (no absolute paths, no ``..``, no symlink out of the folder).
 - :func:`plain_template`: a ``str.format`` template whose fields are plain names (no
   ``{x.attr}`` / ``{x[0]}`` access to Python objects), optionally from an allowed set.
+- :func:`plain_line`: free text (a unit's model) that stays one line of printable characters,
+  so it cannot add lines to a parameter file or a header an export writes it into.
 """
 
 from __future__ import annotations
@@ -18,12 +20,23 @@ from pathlib import Path, PurePosixPath, PureWindowsPath
 from workbench.errors import WorkbenchError
 
 SAFE_COMPONENT = re.compile(r"[A-Za-z0-9][A-Za-z0-9._+-]{0,63}")
+PLAIN_LINE_MAX = 200  # characters of a free-text field (a unit's model)
+CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f\u2028\u2029]")  # line breaks, tabs, escapes, C1 controls
 
 
 def safe_component(text: str, what: str = "name", error: type[WorkbenchError] = WorkbenchError) -> str:
     """``text`` if it is 1-64 of ``A-Z a-z 0-9 . _ + -`` starting with a letter or digit, else ``error``."""
     if not isinstance(text, str) or not SAFE_COMPONENT.fullmatch(text) or ".." in text:
         raise error(f"{what} {text!r}: use 1-64 letters, digits and . _ + - (starting with a letter or digit)")
+    return text
+
+
+def plain_line(text: str, what: str = "text", error: type[WorkbenchError] = WorkbenchError) -> str:
+    """``text`` if it is a string of at most :data:`PLAIN_LINE_MAX` characters with no control
+    character or line break, else ``error`` naming ``what``."""
+    if not isinstance(text, str) or len(text) > PLAIN_LINE_MAX or CONTROL.search(text):
+        shown = text[:40] if isinstance(text, str) else text
+        raise error(f"{what} {shown!r}: expected one line of at most {PLAIN_LINE_MAX} printable characters")
     return text
 
 

@@ -15,9 +15,10 @@ from typing import TYPE_CHECKING
 
 import pandas as pd
 
+from workbench.confine import plain_line, safe_component
 from workbench.errors import SessionError
 from workbench.files import atomic_write_text
-from workbench.session_types import FORMAT, STEP_LOG, StepRecord
+from workbench.session_types import FORMAT, STEP_LOG, StepRecord, finite
 
 if TYPE_CHECKING:
     from workbench.session import Session
@@ -38,9 +39,13 @@ def read_manifest(directory: Path) -> dict:
     if not mpath.exists():
         raise SessionError(f"{directory}: no session.json")
     try:
-        data = json.loads(mpath.read_text())
+        data = json.loads(mpath.read_bytes())  # UTF-8 (or -16/-32 with a BOM), as JSON allows
     except json.JSONDecodeError as exc:
         raise SessionError(f"{mpath}: not valid JSON (line {exc.lineno}: {exc.msg})") from None
+    except UnicodeDecodeError:
+        raise SessionError(f"{mpath}: not valid JSON (not UTF-8 text)") from None
+    if not isinstance(data, Mapping):
+        raise SessionError(f"{mpath}: expected a JSON object, got {type(data).__name__}")
     fmt = data.get("format")
     if fmt != FORMAT:
         raise SessionError(f"{mpath}: format {fmt!r} is not {FORMAT!r}")
@@ -54,7 +59,7 @@ def step_log(directory: Path) -> list[dict]:
     a last line cut short by a kill is ignored. Empty when there is no log.
     """
     try:
-        lines = (Path(directory) / STEP_LOG).read_text().splitlines()
+        lines = (Path(directory) / STEP_LOG).read_bytes().decode("utf-8", "replace").splitlines()
     except FileNotFoundError:
         return []
     entries: dict[int, dict] = {}
@@ -65,7 +70,11 @@ def step_log(directory: Path) -> list[dict]:
             if n == len(lines) - 1:
                 break  # the line being written when the recording was killed
             raise SessionError(f"{directory / STEP_LOG}: line {n + 1} is not valid JSON") from None
-        entries[int(entry["step"]["index"])] = entry
+        step = entry.get("step") if isinstance(entry, dict) else None
+        index = step.get("index") if isinstance(step, dict) else None
+        if not isinstance(index, int) or isinstance(index, bool):
+            raise SessionError(f"{directory / STEP_LOG}: line {n + 1}: expected {{\"step\": {{\"index\": N, ...}}, ...}}")
+        entries[index] = entry
     return [entries[i] for i in sorted(entries)]
 
 
@@ -85,15 +94,25 @@ def parse_manifest(data: Mapping, source: str) -> tuple[dict, list[StepRecord]]:
     for key in ("unit", "site", "sample_rate_hz", "steps"):
         if key not in data:
             raise SessionError(f"{source}: missing field {key!r}")
+    unit = data["unit"]
+    if not isinstance(unit, Mapping):
+        raise SessionError(f"{source}: unit: expected an object with serial and model, got {unit!r}")
+    safe_component(unit.get("serial"), f"{source}: unit.serial", SessionError)  # it names folders and exports
+    plain_line(unit.get("model", ""), f"{source}: unit.model", SessionError)
     site = data["site"]
     if not isinstance(site, Mapping) or site.get("latitude_deg") is None:
         raise SessionError(f"{source}: site.latitude_deg is missing")
-    lat = float(site["latitude_deg"])
+    lat = finite(site["latitude_deg"], f"{source}: site.latitude_deg")
     if not -90 <= lat <= 90:
         raise SessionError(f"{source}: site.latitude_deg {lat} is outside -90..90")
+    for key in ("longitude_deg", "height_m", "table_zero_azimuth_deg", "field_norm_ut"):
+        if site.get(key) is not None:
+            finite(site[key], f"{source}: site.{key}")
     rate = data["sample_rate_hz"]
-    if not isinstance(rate, (int, float)) or not rate > 0:
+    if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not 0 < rate < float("inf"):
         raise SessionError(f"{source}: sample_rate_hz must be a positive number")
+    if not isinstance(data["steps"], list):
+        raise SessionError(f"{source}: steps: expected a list of step objects")
     steps = [StepRecord.from_dict(s, source) for s in data["steps"]]
     idx = [s.index for s in steps]
     if len(set(idx)) != len(idx):

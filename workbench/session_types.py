@@ -105,15 +105,30 @@ class StepRecord:
                 raise SessionError(f"{where}: missing field {key!r}")
         if d["kind"] not in STEP_KINDS:
             raise SessionError(f"{where}: unknown kind {d['kind']!r} (expected one of {', '.join(STEP_KINDS)})")
-        mount = np.array(d.get("mount", np.eye(3)), float)
+        try:
+            mount = np.array(d.get("mount", np.eye(3)), float)
+        except (TypeError, ValueError):
+            mount = np.full(1, np.nan)
         if mount.shape != (3, 3) or not np.all(np.isfinite(mount)):
             raise SessionError(f"{where}: 'mount' must be a finite 3x3 matrix")
         if not np.allclose(mount @ mount.T, np.eye(3), atol=1e-6) or np.linalg.det(mount) < 0:
             raise SessionError(f"{where}: 'mount' is not a rotation matrix")
-        t0, t1 = float(d["t_start"]), float(d["t_end"])
+        t0, t1 = finite(d["t_start"], f"{where}: t_start"), finite(d["t_end"], f"{where}: t_end")
         if not t1 > t0:
             raise SessionError(f"{where}: t_end {t1} is not after t_start {t0}")
         temp = d.get("temperature_c")
-        return cls(idx, d["kind"], t0, t1, mount, float(d.get("table_angle") or 0.0),
-                   float(d.get("table_rate") or 0.0), None if temp is None else float(temp),
+        return cls(idx, d["kind"], t0, t1, mount, finite(d.get("table_angle") or 0.0, f"{where}: table_angle"),
+                   finite(d.get("table_rate") or 0.0, f"{where}: table_rate"),
+                   None if temp is None else finite(temp, f"{where}: temperature_c"),
                    str(d.get("label", "")), {k: v for k, v in d.items() if k not in known})
+
+
+def finite(value: object, where: str) -> float:
+    """``value`` as a finite float (a bool is not a number), else a SessionError naming ``where``."""
+    try:
+        x = float(value) if not isinstance(value, (bool, str)) else float("nan")
+    except (TypeError, ValueError):
+        x = float("nan")
+    if not np.isfinite(x):
+        raise SessionError(f"{where}: expected a finite number, got {value!r}")
+    return x

@@ -70,10 +70,47 @@ def test_bad_samples_get_errors_naming_the_column(recorded, tmp_path, edit, matc
     (lambda m: m["site"].pop("latitude_deg"), "latitude_deg"),
     (lambda m: m["steps"][0].__setitem__("kind", "wobble"), "step 0: unknown kind 'wobble'"),
     (lambda m: m.__setitem__("format", "other/1"), "format"),
+    # a value of the wrong type names its field (these were ValueError / TypeError tracebacks)
+    (lambda m: m["steps"][0].__setitem__("mount", "up"), "step 0: 'mount' must be a finite 3x3 matrix"),
+    (lambda m: m["steps"][0].__setitem__("t_start", "soon"), "step 0: t_start: expected a finite number, got 'soon'"),
+    (lambda m: m["steps"][1].__setitem__("temperature_c", "warm"), "step 1: temperature_c: expected a finite number"),
+    (lambda m: m["site"].__setitem__("latitude_deg", "north"), "site.latitude_deg: expected a finite number"),
+    (lambda m: m["site"].__setitem__("height_m", [1]), "site.height_m: expected a finite number"),
+    (lambda m: m.__setitem__("steps", 5), "steps: expected a list of step objects"),
+    (lambda m: m.__setitem__("unit", "x"), "unit: expected an object with serial and model"),
+    (lambda m: m.__setitem__("sample_rate_hz", float("inf")), "sample_rate_hz must be a positive number"),
+    # the serial names folders and is written into exports; the model into their comment lines
+    (lambda m: m["unit"].__setitem__("serial", "../../etc"), "unit.serial '../../etc': use 1-64 letters, digits"),
+    (lambda m: m["unit"].__setitem__("serial", "[bold]x[/]"), "unit.serial"),
+    (lambda m: m["unit"].__setitem__("model", "m\nPARAM 1"), "unit.model .*: expected one line of at most 200 printable characters"),
 ])
 def test_bad_manifests(recorded, tmp_path, edit, match):
     with pytest.raises(SessionError, match=match):
         load_session(_copy(recorded, tmp_path, edit_manifest=edit))
+
+
+@pytest.mark.parametrize("text,match", [
+    (b"[1, 2]", "expected a JSON object, got list"),
+    (b"\x80\x81{", "not valid JSON"),
+])
+def test_a_manifest_that_is_not_an_object_or_not_text(recorded, tmp_path, text, match):
+    d = _copy(recorded, tmp_path)
+    (d / "session.json").write_bytes(text)
+    with pytest.raises(SessionError, match=f"session.json: {match}"):
+        load_session(d)
+
+
+@pytest.mark.parametrize("log,match", [
+    (b'[1, 2]\n{"step": {"index": 1}}\n', "line 1: expected"),
+    (b'{"step": [0]}\n{"step": {"index": 1}}\n', "line 1: expected"),
+    (b'\xff\xfe\n{"step": {"index": 1}}\n', "line 1 is not valid JSON"),
+])
+def test_a_corrupt_step_log_names_its_line(recorded, tmp_path, log, match):
+    """An unfinished recording's step log edited or damaged (not only cut short by a kill)."""
+    d = _copy(recorded, tmp_path, edit_manifest=lambda m: m.update(complete=False, steps=m["steps"][:1]))
+    (d / "steps.jsonl").write_bytes(log)
+    with pytest.raises(SessionError, match=f"steps.jsonl: {match}"):
+        load_session(d)
 
 
 def test_lazy_loading_streams_the_same_samples_in_bounded_batches(recorded, tmp_path):

@@ -341,21 +341,23 @@ def test_sessions_browse_steps_and_plots(stored_session):
 
 
 def test_sessions_long_serial_shown_whole_as_plain_text(seeded_db, tmp_path):
-    """A serial is user input: a long one is shown whole (st.metric cuts it with an ellipsis) and markup in it
-    stays text (st.metric would render the bold and the link)."""
+    """A serial is user input: a long one (64 characters, the most a serial may have) is shown whole
+    (st.metric cuts it with an ellipsis); markup in the procedure field stays text (st.metric would
+    render the bold and the link). A serial holds no markup characters: the session loader refuses them."""
     from dataclasses import replace
 
     from tests.dashboard.conftest import make_session
     from workbench.session import write_session
     from workbench.values import Unit
 
-    serial = "MARG-**MPU6050**+HMC5883L-<b>board</b>-[7](http://x.invalid)-2026-12-02-rev-C-000123456789"
-    session = replace(make_session(), unit=Unit(serial, "test-imu"))
+    serial = "MARG-MPU6050+HMC5883L-board-7-2026-12-02-rev-C-000123456789-ABCD"
+    procedure = "**multiposition** <b>by hand</b> [7](http://x.invalid)"
+    session = replace(make_session(), unit=Unit(serial, "test-imu"), procedure=procedure)
     folder = write_session(session, tmp_path / "long")
     seeded_db.add_session(session.id, serial, "test-imu", "multiposition", str(folder), n_steps=2)
     at = page("30_sessions.py")
     assert not at.exception and not at.error
-    assert texts(at, "text")[0] == serial
+    assert texts(at, "text")[:2] == [serial, procedure]
     assert all(m.label != "Unit" for m in at.metric)
 
 
