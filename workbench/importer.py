@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from workbench.confine import confined_path, plain_template
+from workbench.confine import confined_path, plain_template, safe_component
 from workbench.errors import ImportProfileError, WorkbenchError
 from workbench.files import file_sha256
 from workbench.importers.merge import GAP_PERIODS, merge_streams
@@ -31,7 +31,7 @@ from workbench.importers.profile import PROFILE_FORMAT, SINGLE, load_profile, st
 from workbench.importers.streams import Stream, read_stream
 from workbench.importers.summary import import_summary
 from workbench.sequence import mount_matrix
-from workbench.session import STEP_KINDS, Session, Site, StepRecord, load_session, validate_samples, write_session
+from workbench.session import Session, Site, StepRecord, load_session, validate_samples, write_session
 from workbench.staging import refuse_existing, staged_folder
 from workbench.values import Unit
 
@@ -48,12 +48,29 @@ def _sections(prof: Mapping, data_file: Path, profile_path: Path) -> dict:
         f = confined_path(folder, name.format(stem=data_file.stem), f"{profile_path}: sections.file",
                           ImportProfileError)
         try:
-            ranges = json.loads(f.read_text())
-        except (OSError, json.JSONDecodeError) as exc:
+            ranges = json.loads(f.read_bytes())
+        except (OSError, ValueError) as exc:  # ValueError: not JSON, or not UTF-8 text
             raise ImportProfileError(f"{f}: cannot read the sections file ({exc})") from None
+        where = str(f)
     else:
         return {}
-    return {name: (r["start"], r["end"]) if isinstance(r, Mapping) else tuple(r) for name, r in ranges.items()}
+    return _ranges(ranges, where if "file" in sec and "inline" not in sec else f"{profile_path}: sections.inline")
+
+
+def _ranges(ranges, where: str) -> dict[str, tuple[int, int]]:
+    """{section: (start, end)} sample-counter ranges (end exclusive) from ``{name: {start, end}}`` or
+    ``{name: [start, end]}``; ImportProfileError naming ``where`` and the section otherwise."""
+    if not isinstance(ranges, Mapping):
+        raise ImportProfileError(f"{where}: expected {{section: {{start: N, end: N}}}}, got {type(ranges).__name__}")
+    out = {}
+    for name, r in ranges.items():
+        pair = (r.get("start"), r.get("end")) if isinstance(r, Mapping) else tuple(r) if isinstance(r, list) else ()
+        if len(pair) != 2 or not all(isinstance(v, int) and not isinstance(v, bool) for v in pair) \
+                or not 0 <= pair[0] < pair[1]:
+            raise ImportProfileError(f"{where}: section {name}: expected whole sample counts 0 <= start < end, "
+                                     f"got {r!r}")
+        out[str(name)] = pair
+    return out
 
 
 def _section_steps(prof: Mapping, sections: dict, t: np.ndarray, counter: np.ndarray, rate: float,
@@ -66,9 +83,7 @@ def _section_steps(prof: Mapping, sections: dict, t: np.ndarray, counter: np.nda
         spec = step_specs.get(name)
         if spec is None:
             raise ImportProfileError(f"{profile_path}: sections.steps: no entry for section {name!r}")
-        kind = spec.get("kind", "static")
-        if kind not in STEP_KINDS:
-            raise ImportProfileError(f"{profile_path}: sections.steps.{name}.kind {kind!r} is unknown")
+        kind = spec.get("kind", "static")  # kind, mount and turn checked with the profile
         sel = (counter >= a) & (counter < b)
         if not sel.any():
             raise ImportProfileError(f"{data}: section {name} ({a}..{b}) selects no samples")
@@ -130,6 +145,8 @@ def import_file(profile_path: str | Path, data_file: str | Path, out_dir: str | 
     prof = load_profile(profile_path)
     if not data.exists():
         raise WorkbenchError(f"{data}: no such file or folder")
+    if "serial" not in (prof.get("unit") or {}):  # the data's name is the serial: it names folders, goes into exports
+        safe_component(data.stem, f"{profile_path}: no unit.serial, and the data's name", ImportProfileError)
     streams = _read_streams(prof, profile_path, data)
     base = time_base(prof)
     merged = merge_streams(streams, base)

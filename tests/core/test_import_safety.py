@@ -59,6 +59,34 @@ def test_sections_file_confined_to_the_data_folder(tmp_path, name, match):
     _nothing_left(tmp_path, "s")
 
 
+@pytest.mark.parametrize("content,match", [
+    ("[[0, 200], [200, 400]]", "expected {section: {start: N, end: N}}, got list"),
+    ('{"a": {"start": "x", "end": 200}, "b": [200, 400]}', "section a: expected whole sample counts"),
+    ('{"a": [0, 200.5], "b": [200, 400]}', "section a: expected whole sample counts"),
+    ('{"a": [200, 0], "b": [200, 400]}', "section a: expected whole sample counts 0 <= start < end"),
+    ('{"a": [0], "b": [200, 400]}', "section a"),
+    ('{"a": 5, "b": [200, 400]}', "section a"),
+])
+def test_a_malformed_sections_file_names_the_file_and_section(tmp_path, capsys, content, match):
+    """The sections file is the recording's (another tool wrote it): its contents were KeyError / TypeError tracebacks."""
+    profile, data = _recording(tmp_path / "d")
+    (tmp_path / "d" / "rec_list.json").write_text(content)
+    assert main(["import", str(profile), str(data), "--out", str(tmp_path / "s")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err and f"rec_list.json: {match}" in err, err
+    _nothing_left(tmp_path, "s")
+
+
+def test_a_data_file_whose_name_is_no_serial_needs_unit_serial(tmp_path, capsys):
+    """Without unit.serial the data file's name is the serial, which names folders: 'my rec' is refused."""
+    profile, data = _recording(tmp_path / "d")
+    named = data.rename(data.with_name("my rec.csv"))
+    (tmp_path / "d" / "my rec_list.json").write_text((tmp_path / "d" / "rec_list.json").read_text())
+    assert main(["import", str(profile), str(named), "--out", str(tmp_path / "s")]) == 2
+    assert "no unit.serial, and the data's name 'my rec': use 1-64 letters" in capsys.readouterr().err
+    _nothing_left(tmp_path, "s")
+
+
 def test_a_symlink_out_of_the_data_folder_is_refused(tmp_path):
     (tmp_path / "outside.json").write_text(json.dumps({"a": [0, 200]}))
     profile, data = _recording(tmp_path / "d", "link.json")
@@ -102,7 +130,7 @@ def test_import_out_refuses_an_existing_session(tmp_path, capsys):
 def test_a_failed_import_leaves_no_folder(tmp_path, capsys):
     profile, data = _recording(tmp_path / "d")
     prof = yaml.safe_load(profile.read_text())
-    prof["sections"]["steps"]["b"]["mount"] = "sideways"  # fails after the samples were converted
+    prof["sections"]["steps"]["b"]["mount"] = "sideways"  # refused with the profile
     profile.write_text(yaml.safe_dump(prof))
     assert main(["import", str(profile), str(data), "--out", str(tmp_path / "s")]) == 2
     _nothing_left(tmp_path, "s")

@@ -74,6 +74,28 @@ CASES = [
      "streams.accel.range: the stream must hold the columns of one triad kind"),
     (STREAMS, _set("reader.trailing_zero_rows", "trim"), "trailing_zero_rows 'trim'"),
     (STREAMS, _set("streams", {}), "streams: no stream"),
+    # a misspelt key is refused, never ignored
+    (SINGLE_FILE, _set("sampel_rate_hz", 100), "sampel_rate_hz: unknown key"),
+    (SINGLE_FILE, _set("columns.gx.scael", -1), "columns.gx.scael: unknown key"),
+    (SINGLE_FILE, _set("site.latitude", 40.0), "site.latitude: unknown key"),
+    (SINGLE_FILE, _set("unit.serail", "x"), "unit.serail: unknown key"),
+    (SINGLE_FILE, _set("sections.flie", "x.json"), "sections.flie: unknown key"),
+    (STREAMS, _set("streams.mag.rate", 75), "streams.mag.rate: unknown key"),
+    (STREAMS, _set("streams.gyro.range.value_dps", 250), "streams.gyro.range.value_dps: unknown key"),
+    # the serial names folders and goes into exports; the model into their comment lines
+    (SINGLE_FILE, _set("unit.serial", "../../x"), "unit.serial '../../x': use 1-64 letters"),
+    (SINGLE_FILE, _set("unit.serial", [1, 2]), "unit.serial [1, 2]"),
+    (SINGLE_FILE, _set("unit.model", "a\n#define X 1"), "unit.model"),
+    # a section's step: its turn and mount are checked before any data is read (were tracebacks or NaN rates)
+    (SINGLE_FILE, _set("sections.steps.x_rot.turn_deg", "lots"), "sections.steps.x_rot.turn_deg: expected a finite"),
+    (SINGLE_FILE, _set("sections.steps.x_rot.turn_deg", float("nan")), "sections.steps.x_rot.turn_deg"),
+    (SINGLE_FILE, _set("sections.steps.x_rot.axis", "w"), "sections.steps.x_rot.axis 'w'"),
+    (SINGLE_FILE, _set("sections.steps.x_p.mount", "sideways"), "sections.steps.x_p.mount: unknown mount"),
+    (SINGLE_FILE, _set("sections.steps.x_p.mount", [["a"]]), "sections.steps.x_p.mount"),
+    (SINGLE_FILE, _set("sections.steps.x_p.kind", "wobble"), "sections.steps.x_p.kind 'wobble' is unknown"),
+    # pandas takes a longer delimiter as a regular expression (and warns on stderr)
+    (SINGLE_FILE, _set("reader.delimiter", ";;"), "reader.delimiter ';;': expected one character"),
+    (SINGLE_FILE, _set("reader.skip_rows", -3), "reader.skip_rows: expected a finite number"),
 ]
 
 

@@ -16,17 +16,26 @@ from pathlib import Path
 
 import numpy as np
 
-from workbench.confine import safe_component
-from workbench.errors import ImportProfileError
+from workbench.confine import plain_line, safe_component
+from workbench.errors import ImportProfileError, RigLimitError
 from workbench.importers.readers import READER_KEYS, READER_TYPES, REQUIRED_KEYS
 from workbench.importers.streams import SI_UNIT, TIME_UNITS, TRIAD_OF
 from workbench.safe_yaml import load_yaml_file
-from workbench.session import ACCEL, GYRO
+from workbench.sequence import mount_matrix
+from workbench.session import ACCEL, GYRO, STEP_KINDS
 
 PROFILE_FORMAT = "workbench-import/1"
 _DIMENSION = {"rad/s": {"rad/s", "deg/s", "deg/h"}, "m/s^2": {"m/s^2", "g", "mg", "ug"},
               "uT": {"uT", "ut", "nT", "gauss", "mgauss", "T"}, "rad": {"rad", "deg", "mrad"}, "degC": {"degC"}}
 SINGLE = "data"  # the stream name of a single-file profile
+# the keys each mapping may hold: a misspelt key (sampel_rate_hz, scael) is refused, never ignored
+TOP_KEYS = {"format", "name", "reader", "sample_rate_hz", "time", "columns", "streams", "time_base", "unit", "site",
+            "sections", "procedure", "rig"}
+COLUMN_KEYS = {"column", "unit", "scale", "offset"}
+STREAM_KEYS = {"file", "time", "rate_hz", "range", "repeats", "columns", "reader"}
+UNIT_KEYS = {"serial", "model"}
+SITE_KEYS = {"latitude_deg", "longitude_deg", "height_m", "table_zero_azimuth_deg", "field_norm_ut"}
+SECTIONS_KEYS = {"file", "inline", "steps"}
 
 
 def _number(value, where: str, lo: float = -np.inf, hi: float = np.inf, optional: bool = False) -> None:
@@ -44,11 +53,19 @@ def _mapping(value, where: str, optional: bool = True) -> Mapping:
     return value
 
 
+def _known(spec: Mapping, keys: set[str], where: str) -> None:
+    """ImportProfileError naming the first key of ``spec`` not in ``keys``."""
+    unknown = sorted(str(k) for k in spec if k not in keys)
+    if unknown:
+        raise ImportProfileError(f"{where}{unknown[0]}: unknown key (expected {', '.join(sorted(keys))})")
+
+
 def _check_columns(columns, where: str) -> None:
     for target, spec in _mapping(columns, f"{where}columns", optional=False).items():
         if target not in SI_UNIT:
             raise ImportProfileError(f"{where}columns.{target}: unknown target (expected one of {', '.join(SI_UNIT)})")
         spec = _mapping(spec, f"{where}columns.{target}", optional=False)
+        _known(spec, COLUMN_KEYS, f"{where}columns.{target}.")
         if "column" not in spec:
             raise ImportProfileError(f"{where}columns.{target}: missing key 'column'")
         if not isinstance(spec["column"], (str, int)) or isinstance(spec["column"], bool):
@@ -87,6 +104,12 @@ def _check_reader(reader: Mapping, where: str) -> None:
     for key in REQUIRED_KEYS.get(kind, ()):
         if key not in reader:
             raise ImportProfileError(f"{where}.{key}: missing (a {kind} reader needs it)")
+    for key in ("delimiter", "comment"):  # pandas takes a longer one as a regular expression
+        if key in reader and not (isinstance(reader[key], str) and len(reader[key]) == 1):
+            raise ImportProfileError(f"{where}.{key} {reader[key]!r}: expected one character")
+    for key in ("skip_rows", "multi_id", "instance"):
+        if key in reader:
+            _number(reader[key], f"{where}.{key}", 0, 1e9)
     if reader.get("trailing_zero_rows", "keep") not in ("keep", "drop"):
         raise ImportProfileError(f"{where}.trailing_zero_rows {reader.get('trailing_zero_rows')!r}: "
                                  "expected 'keep' or 'drop'")
@@ -95,6 +118,7 @@ def _check_reader(reader: Mapping, where: str) -> None:
 def _check_stream(name: str, spec, where: str, top_reader: Mapping) -> None:
     spec = _mapping(spec, where.rstrip("."), optional=False)
     safe_component(name, f"{where.rstrip('.')}: stream name", ImportProfileError)
+    _known(spec, STREAM_KEYS, where)
     if "file" not in spec:
         raise ImportProfileError(f"{where}file: missing (the stream's file inside the data folder)")
     if not isinstance(spec["file"], str):
@@ -107,6 +131,7 @@ def _check_stream(name: str, spec, where: str, top_reader: Mapping) -> None:
     rng = spec.get("range")
     if rng is not None:
         rng = _mapping(rng, f"{where}range", optional=False)
+        _known(rng, {"value", "unit"}, f"{where}range.")
         _number(rng.get("value"), f"{where}range.value", 1e-30, 1e30)
         dims = {SI_UNIT[c] for c in spec["columns"] if c in TRIAD_OF}
         if len(dims) != 1:
@@ -120,8 +145,17 @@ def _check_stream(name: str, spec, where: str, top_reader: Mapping) -> None:
 def _check_shape(prof: Mapping, path: Path) -> None:
     """Sections are mappings and numbers are finite numbers, so reading the profile cannot fail later."""
     p = f"{path}: "
+    _known(prof, TOP_KEYS, p)
     _number(prof.get("sample_rate_hz"), f"{p}sample_rate_hz", 1e-6, 1e7, optional="streams" in prof)
+    unit = _mapping(prof.get("unit"), f"{p}unit")
+    _known(unit, UNIT_KEYS, f"{p}unit.")
+    if "serial" in unit:  # it names folders and is written into exports
+        safe_component(unit["serial"], f"{p}unit.serial", ImportProfileError)
+    plain_line(unit.get("model", ""), f"{p}unit.model", ImportProfileError)
+    for key in ("name", "procedure", "rig"):
+        plain_line(prof.get(key, ""), f"{p}{key}", ImportProfileError)
     site = _mapping(prof["site"], f"{p}site", optional=False)
+    _known(site, SITE_KEYS, f"{p}site.")
     _number(site.get("latitude_deg"), f"{p}site.latitude_deg", -90, 90)
     for key in ("longitude_deg", "height_m", "table_zero_azimuth_deg"):
         _number(site.get(key), f"{p}site.{key}", -1e5, 1e5, optional=True)
@@ -146,9 +180,24 @@ def _check_shape(prof: Mapping, path: Path) -> None:
         _check_reader(_mapping(prof.get("reader"), f"{p}reader"), f"{p}reader")
         _check_time({**prof, "rate_hz": prof.get("sample_rate_hz")}, p, rate_required=True)
     sections = _mapping(prof.get("sections"), f"{p}sections")
+    _known(sections, SECTIONS_KEYS, f"{p}sections.")
     for name, step in _mapping(sections.get("steps"), f"{p}sections.steps").items():
-        _mapping(step, f"{p}sections.steps.{name}", optional=False)
+        _check_section_step(_mapping(step, f"{p}sections.steps.{name}", optional=False), f"{p}sections.steps.{name}")
     _mapping(sections.get("inline"), f"{p}sections.inline")
+
+
+def _check_section_step(step: Mapping, where: str) -> None:
+    """A section's step: its kind, mount and the numbers of a turn (further keys travel with the step)."""
+    if step.get("kind", "static") not in STEP_KINDS:
+        raise ImportProfileError(f"{where}.kind {step.get('kind')!r} is unknown (expected one of {', '.join(STEP_KINDS)})")
+    try:
+        mount_matrix(step.get("mount", "z-down"))
+    except (RigLimitError, TypeError, ValueError) as exc:
+        raise ImportProfileError(f"{where}.mount: {exc}") from None
+    for key in ("turn_deg", "table_rate_dps"):
+        _number(step.get(key), f"{where}.{key}", -1e6, 1e6, optional=True)
+    if step.get("axis", "z") not in ("x", "y", "z"):
+        raise ImportProfileError(f"{where}.axis {step.get('axis')!r}: expected x, y or z")
 
 
 def stream_specs(prof: Mapping) -> dict[str, dict]:

@@ -67,10 +67,15 @@ class Stream:
         return float(1.0 / np.median(np.diff(self.t))) if len(self.t) > 1 else float("nan")
 
 
+def _columns_text(raw: pd.DataFrame) -> str:
+    """The file's first column names for an error; a file read as one column hints at the delimiter."""
+    hint = "; one column only: is reader.delimiter the file's?" if len(raw.columns) == 1 else ""
+    return f"(columns: {', '.join(map(str, raw.columns[:12]))}{hint})"
+
+
 def _column(raw: pd.DataFrame, col, where: str) -> np.ndarray:
     if col not in raw.columns:
-        raise ImportProfileError(f"{where}: column {col!r} not in the file "
-                                 f"(columns: {', '.join(map(str, raw.columns[:12]))})")
+        raise ImportProfileError(f"{where}: column {col!r} not in the file {_columns_text(raw)}")
     values = pd.to_numeric(raw[col], errors="coerce").to_numpy(float)
     bad = ~np.isfinite(values)
     if bad.any():
@@ -85,7 +90,7 @@ def convert(raw: pd.DataFrame, columns: Mapping, where: str) -> pd.DataFrame:
     for target, spec in columns.items():
         if spec["column"] not in raw.columns:
             raise ImportProfileError(f"{where}: profile column {spec['column']!r} (for {target}) not in the file "
-                                     f"(columns: {', '.join(map(str, raw.columns[:12]))})")
+                                     f"{_columns_text(raw)}")
         values = _column(raw, spec["column"], f"{where}: columns.{target}")
         values = values * float(spec.get("scale", 1.0)) + float(spec.get("offset", 0.0))
         unit = spec.get("unit", SI_UNIT[target])
