@@ -27,6 +27,7 @@ import jsonschema
 import numpy as np
 
 from workbench import __version__
+from workbench.confine import plain_line, safe_component
 from workbench.errors import CalibrationFormatError
 from workbench.files import atomic_write_text, file_sha256  # noqa: F401  (re-exported: older imports)
 from workbench.json_values import json_default, json_value
@@ -202,9 +203,11 @@ class CalibrationSet:
         as written by ``workbench sets export --format yaml``)."""
         path = Path(path)
         try:
-            text = path.read_text()
+            text = path.read_text(encoding="utf-8")
         except OSError as exc:
             raise CalibrationFormatError(f"{path}: cannot read ({exc.strerror})") from None
+        except UnicodeDecodeError as exc:
+            raise CalibrationFormatError(f"{path}: not UTF-8 text (byte {exc.start})") from None
         if path.suffix.lower() in (".yaml", ".yml"):
             return cls.from_yaml(text, source=str(path))
         return cls.from_json(text, source=str(path))
@@ -330,6 +333,11 @@ def validate(data: Mapping, source: str = "<dict>") -> None:
         err = errors[0]
         where = ".".join(str(p) for p in err.absolute_path) or "(top level)"
         raise CalibrationFormatError(f"{source}: {where}: {err.message[:200]}")
+    # text that names store keys and goes verbatim into exports (a C header, parameter files): a serial or
+    # id with a line break or '*/' could add a #define or a parameter line to the file an autopilot loads
+    safe_component(data["id"], f"{source}: id", CalibrationFormatError)
+    safe_component(data["unit"]["serial"], f"{source}: unit.serial", CalibrationFormatError)
+    plain_line(data["unit"]["model"], f"{source}: unit.model", CalibrationFormatError)
 
 
 def merge(*sets: CalibrationSet) -> CalibrationSet:

@@ -44,6 +44,12 @@ def _bad(tmp_path, mutate):
     (lambda d: d.__setitem__("format", "workbench-calibration/2"), "not supported"),
     (lambda d: d.__setitem__("format", "workbench-calibration/0"), "not supported"),
     (lambda d: d.pop("unit"), "unit"),
+    # a serial, id or model goes verbatim into exports: a line break would add a line to a parameter file,
+    # '*/' a #define to a C header
+    (lambda d: d["unit"].__setitem__("serial", "x */\n#define WB_ACCEL_BIAS_X 99.0\n/*"), "unit.serial 'x \\*/"),
+    (lambda d: d["unit"].__setitem__("serial", "../../x"), "unit.serial '../../x': use 1-64 letters, digits"),
+    (lambda d: d.__setitem__("id", "a\nCAL_ACC0_XOFF 5"), "id 'a.*CAL_ACC0_XOFF 5': use 1-64 letters"),
+    (lambda d: d["unit"].__setitem__("model", "m\nINS_ACCOFFS_X 5.0"), "unit.model .*: expected one line"),
 ])
 def test_bad_files_get_one_line_errors_naming_file_and_field(tmp_path, mutate, match):
     p = _bad(tmp_path, mutate)
@@ -56,6 +62,9 @@ def test_malformed_json(tmp_path):
     p = tmp_path / "x.json"
     p.write_text("{not json")
     with pytest.raises(CalibrationFormatError, match="not valid JSON"):
+        CalibrationSet.load(p)
+    p.write_bytes(b"\xff\xfe{")  # was a UnicodeDecodeError traceback
+    with pytest.raises(CalibrationFormatError, match="x.json: not UTF-8 text"):
         CalibrationSet.load(p)
 
 

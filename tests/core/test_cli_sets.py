@@ -103,7 +103,7 @@ def test_sets_show_and_diff_fit_80_columns(db, tmp_path, capsys, monkeypatch):
     gyro = TriadCalibration(TriadModel(bias=[1e-4, 2e-4, 0.0], scale_misalignment=np.full((3, 3), 1e-4),
                                        nonlinearity=[1e-6, 0, 0], g_sensitivity=np.full((3, 3), 1e-5), thermal=th),
                             {"bias": np.array([1e-6, 1e-6, np.nan]), "nonlinearity": np.full(3, 1e-7)})
-    name = "a-long-serial-number-of-a-unit/with/a/path-like/part-0123456789-0123456789"
+    name = "a-long-serial-number-of-a-unit.with-a.path-like-part-0123456789X"  # 64: the longest serial
     a = CalibrationSet(Unit(name, "industrial_mems"), {"gyro": gyro},
                        noise={"gyro": {"arw": [1e-4, None, 1e-4], "arw_ci95": [[9e-5, 1.1e-4], None, [9e-5, 1.1e-4]]}})
     b_gyro = TriadCalibration(TriadModel(bias=[1.1e-4, 0.0, 3e-4]), {"bias": np.array([1e-6, np.nan, 1e-6])})

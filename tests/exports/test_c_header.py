@@ -27,6 +27,20 @@ def full_set() -> CalibrationSet:
     return CalibrationSet(cal.unit, triads)
 
 
+def test_a_model_holding_a_comment_end_stays_inside_the_comment():
+    """The model is free text (one line): '*/' in it must not end the header's comment and start code."""
+    from dataclasses import replace
+
+    from workbench.values import Unit
+
+    cal = expressible_set()
+    cal = replace(cal, unit=Unit(cal.unit.serial, "evil */ #define WB_ACCEL_BIAS_X 99.0 /*"))
+    text = c_header.export(cal).text
+    first = text.splitlines()[0]
+    assert first.startswith("/*") and first.endswith("*/") and first.count("*/") == 1
+    assert "#define WB_ACCEL_BIAS_X 99.0" not in text.replace(first, "")
+
+
 def _c(values) -> str:
     return ", ".join(repr(float(v)) for v in values)
 

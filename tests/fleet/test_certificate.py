@@ -21,7 +21,7 @@ PNG = bytes.fromhex("89504e470d0a1a0a0000000d4948445200000001000000010806000000"
                     "1f15c4890000000d49444154789c6360000002000154a24f5d0000000049454e44ae426082")
 
 
-def _stored(tmp_path: Path, serial: str) -> tuple[CalibrationSet, Store]:
+def _stored(tmp_path: Path, serial: str, model: str = "industrial_mems") -> tuple[CalibrationSet, Store]:
     """A set whose one session folder holds session.json (rig 'sim') and a stored figure, plus its result."""
     run = tmp_path / "run"
     (run / "figures").mkdir(parents=True)
@@ -35,7 +35,7 @@ def _stored(tmp_path: Path, serial: str) -> tuple[CalibrationSet, Store]:
     gyro = TriadCalibration(TriadModel(bias=[1e-4, 0, 0], thermal=th, g_sensitivity=np.eye(3) * 1e-5,
                                        nonlinearity=[1e-6, 0, 0]),
                             {"bias": np.array([1e-6, 1e-6, np.nan]), "nonlinearity": np.full(3, 1e-7)})
-    cal = CalibrationSet(Unit(serial, "industrial_mems"), {"gyro": gyro},
+    cal = CalibrationSet(Unit(serial, model), {"gyro": gyro},
                          provenance=Provenance(("thermal",), ({"id": "sess-1", "procedure": "thermal",
                                                                "sha256": "ab" * 32, "rig": "sim-turntable"},)))
     store = Store(f"sqlite:///{tmp_path / 'w.db'}")
@@ -65,7 +65,7 @@ def test_certificate_from_stored_results_with_lab_fields(tmp_path, monkeypatch):
 
 
 def test_user_text_is_escaped(tmp_path):
-    cal, store = _stored(tmp_path, "<script>alert(1)</script>")
+    cal, store = _stored(tmp_path, "U-1", "<script>alert(1)</script>")  # a serial is a safe name; a model free text
     store.approve(cal.id, "<b>mallory</b>", "<img src=x onerror=alert(2)>")
     html = render_certificate(cal, store)
     assert "<script>alert(1)" not in html and "&lt;script&gt;alert(1)&lt;/script&gt;" in html
