@@ -17,12 +17,18 @@ earlier run: same seed, same numbers).
         [--repeat 1] [--out DIR] [--no-figures] [--workers N]
 
 Target of issue 23: the whole campaign under 10 s wall on 2 cores. Measured (industrial MEMS,
-seed 1, 2 workers): 9.1 s wall, 16.5 s CPU at load 1.2 (13.9-21.1 s wall, 14.3-14.7 s CPU at
-load 1.6-2.6); before the one-pass figure layout 11.7-23.5 s wall, 15.3-17.4 s CPU at load
-1.4-3.0, with identical results. Where the CPU goes: 2.9 s in this process before the workers
-fork (imports: scipy.signal alone, for the simulation's filters, about 1.0 s; matplotlib 0.6 s),
-recording 8.1 s (thermal 4.9 s: the noise model, the Parquet write of the samples, pandas
-concatenation), analyses 3.6 s, 17 figures 3.5-5 s.
+seed 1, 2 workers): 9.1 s wall, 16.5 s CPU at load 1.2 before the IEEE 952 fit's quantization-ratio
+search (39d173f: the Allan analysis 3.8 s of CPU instead of 1.5 s, on the campaign's critical path:
+Allan record, Allan analysis, thermal analysis, thermal figures). Then, interleaved with 22300fd
+(2026-12-02, two runs each, load 5.4-8.3, so the wall times, 29-41 s, say little, and a single run's
+CPU varies by 1-2 s): 14.95-15.19 s CPU against 17.51-18.51 s, largest peak 538 MB against 605-610 MB; recording allan 1.16-1.28 s CPU (1.41-1.58 s),
+thermal 2.73-2.78 s (3.42-3.50 s), the figures 3.6 s (4.1-4.9 s), the same files (samples, results,
+sets and figures byte for byte). Where the CPU goes now: 1.6 s in this process before the workers
+fork (imports; scipy.signal, 0.3-0.5 s with the scipy.stats it loads, no longer: the simulator runs
+its kernels without it), recording 4.4-4.6 s (the virtual sensor about 60 %: random numbers, the
+flicker filter and the error model in about equal parts; the step parts and the samples file about
+0.6 s of thermal's 2.8 s), analyses 5.8-5.9 s (the Allan fit 4.3-4.4 s), 17 figures 3.6 s
+(matplotlib's drawing; the layout in one pass).
 """
 
 from __future__ import annotations
