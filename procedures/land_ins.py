@@ -3,7 +3,9 @@
 The 15/20-state error-state EKF of :mod:`workbench.nav.land_ins` (paper 001 eq. 1-47) runs
 twice, on the raw samples and on the samples compensated with the set; its process noise and
 initial bias sigmas come from the set's noise block and bias sigmas (raw: the grade-free
-``raw_*`` priors). No GNSS is used; the drive's GPS fixes, where present, are the reference the
+``raw_*`` priors). The block's bias instability is a Gauss-Markov state of each triad (``bias_model``,
+:mod:`workbench.nav.bias_model`: sigma 1.076 B, correlation time at the block's Allan minimum / 1.893)
+beside the rate random walk, or (``random_walk``) spread into the bias random walk as before. No GNSS is used; the drive's GPS fixes, where present, are the reference the
 horizontal error is measured against (the paper's SPAN reference), in metres and % of the
 distance travelled (the GPS track length).
 
@@ -28,7 +30,9 @@ from workbench.calset import CalibrationSet
 from workbench.earth import radii
 from workbench.errors import AnalysisError
 from workbench.nav.compensate import check_calibration, compensate, imu_samples, process_noise
+from workbench.nav.bias_model import gauss_markov_from_allan
 from workbench.nav.land_ins import GradeErrors, LandInsConfig, run_land_ins
+from workbench.nav.land_ins_model import BIAS_MODELS
 from workbench.nav.lns import track_length
 from workbench.nav.road import gps_fixes, thin
 from workbench.options import Option, check_options, defaults
@@ -68,6 +72,8 @@ OPTIONS = (
            unit="deg/h", gt=0),
     Option("raw_accel_bias_prior_mg", "analysis", "float", 5.0, "accelerometer bias prior of the raw run",
            unit="mg", gt=0),
+    Option("bias_model", "analysis", "str", "gauss_markov", "the set's bias instability as a Gauss-Markov state or "
+           "spread into the bias random walk", choices=BIAS_MODELS),
     Option("force", "analysis", "bool", False, "accept a set of another serial"),
 )
 DEFAULTS = defaults(OPTIONS)
@@ -106,8 +112,8 @@ def sequence(spec, **options):
 
 
 def _grade(cal: CalibrationSet, calibrated: bool, noise, o) -> GradeErrors:
-    """What the filter is told: noise from the set; bias sigmas from the set (calibrated: 2 x the
-    set's bias sigma (+) bias instability) or the raw priors."""
+    """What the filter is told: noise from the set (the bias instability as ``o["bias_model"]`` says); bias
+    sigmas from the set (calibrated: 2 x the set's bias sigma (+) bias instability) or the raw priors."""
     if calibrated:
         sig = {t: np.hypot(cal.triads[t].sigma_of("bias"), np.nan_to_num(cal.noise_term(t, "bias_instability")))
                for t in ("gyro", "accel")}
@@ -122,8 +128,17 @@ def _grade(cal: CalibrationSet, calibrated: bool, noise, o) -> GradeErrors:
         scale[t] = np.where(np.isfinite(np.diag(sm)), 2 * np.diag(sm), o.si("raw_scale_prior_ppm"))
         worst = np.nanmax(np.where(np.isfinite(off), off, -np.inf), axis=1)
         mis[t] = np.where(np.isfinite(worst) & (worst > 0), 2 * worst, o.si("raw_misalignment_prior_mrad"))
-    return GradeErrors(ba, bg, noise.accel_white, noise.gyro_white, noise.accel_bias_rw, noise.gyro_bias_rw,
-                       scale["gyro"], mis["gyro"], scale["accel"], mis["accel"])
+    walk, markov = {"gyro": noise.gyro_bias_rw, "accel": noise.accel_bias_rw}, {}
+    for t, white in (("gyro", noise.gyro_white), ("accel", noise.accel_white)):
+        if o["bias_model"] == "gauss_markov":
+            rrw = np.nan_to_num(cal.noise_term(t, "rrw"))
+            walk[t] = rrw
+            markov[t] = gauss_markov_from_allan(white, cal.noise_term(t, "bias_instability"), rrw,
+                                                cal.noise_term(t, "quantization"), cal.noise_term(t, "rate_ramp"))
+        else:
+            markov[t] = (np.zeros(3), np.full(3, np.inf))
+    return GradeErrors(ba, bg, noise.accel_white, noise.gyro_white, walk["accel"], walk["gyro"],
+                       scale["gyro"], mis["gyro"], scale["accel"], mis["accel"], *markov["gyro"], *markov["accel"])
 
 
 def analyze(session: Session, calibration: CalibrationSet | None = None, **options) -> ProcedureResult:

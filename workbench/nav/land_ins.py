@@ -20,6 +20,8 @@ metres):
     δv̇ = -[f^n×] δψ + C_b^n b_a - [(2 ω_ie + ω_en)×] δv + (0, 0, 2g/R δr_D)
     δψ̇ = -[ω_in×] δψ - ∂ω_en/∂v δv - ∂ω_ie/∂r δr + C_b^n b_g
     ḃ_a, ḃ_g: random walks; δw, δl: random constants (small random walk, eq. 6-9)
+    δβ̇_g = -δβ_g / T_g + w, δβ̇_a = -δβ_a / T_a + w: the bias instability as a Gauss-Markov state
+    (:mod:`workbench.nav.bias_model`), entering as ``C_b^n δβ`` beside the biases (and in the ZARUPT)
 
 ``G w`` with ``w = [accel white, gyro white, accel bias RW, gyro bias RW]`` (eq. 4-5).
 
@@ -53,8 +55,8 @@ import numpy as np
 
 from workbench.earth import EARTH_RATE, normal_gravity, radii
 from workbench.nav.land_ins_model import (  # noqa: F401  (re-exported: the model's public names)
-    A_, BA, BG, BW, LA, N_STATES, P_, SA, SG, STATE_COUNTS, V_, GradeErrors, LandInsConfig, discretise,
-    error_dynamics, grade_errors, nhc_jacobian, scale_columns)
+    A_, BA, BG, BW, GA, GG, LA, N_STATES, P_, SA, SG, STATE_COUNTS, V_, GradeErrors, LandInsConfig, discretise,
+    error_dynamics, grade_errors, nhc_jacobian, scale_columns, state_index)
 from workbench.nav import nav_results
 from workbench.nav.strapdown import integrated_noise_cross, sequential_update, skew
 
@@ -76,10 +78,12 @@ def _static_mask(speed: np.ndarray) -> np.ndarray:
 # error sources of the budget: initial covariance blocks, process noise blocks (state indices), measurement noise
 BUDGET_INITIAL = {"initial position, velocity": (0, 1, 2, 3, 4, 5), "initial tilt + accel bias": (6, 7, 9, 10, 11),
                   "initial heading": (8,), "gyro bias x, y (table 3-1)": (12, 13), "gyro bias z (table 3-1)": (14,),
-                  "initial boresight, lever arm": tuple(range(15, 20)), "scale factor, misalignment": tuple(range(20, 38))}
+                  "initial boresight, lever arm": tuple(range(15, 20)), "scale factor, misalignment": tuple(range(20, 38)),
+                  "initial bias instability (Gauss-Markov)": tuple(range(38, 44))}
 GYRO_WHITE = "ARW (in the attitude and the ZARUPT)"  # one source: the ZARUPT sees the noise the attitude integrates
 BUDGET_NOISE = {"VRW": (3, 4, 5), GYRO_WHITE: (6, 7, 8), "accel bias random walk": (9, 10, 11),
-                "gyro bias random walk": (12, 13, 14), "boresight, lever-arm random walk": tuple(range(15, 20))}
+                "gyro bias random walk": (12, 13, 14), "boresight, lever-arm random walk": tuple(range(15, 20)),
+                "gyro bias instability (Gauss-Markov)": (38, 39, 40), "accel bias instability (Gauss-Markov)": (41, 42, 43)}
 BUDGET_MEASUREMENT = ("ZUPT noise", "NHC noise")
 
 
@@ -89,7 +93,8 @@ def covariance_analysis(trajectory, grade: GradeErrors, cfg: LandInsConfig = Lan
     at every filter step: ZUPT + ZARUPT where the vehicle stands still, NHC while it moves.
 
     The trajectory is sampled at ``cfg.update_s`` (it may be generated at that rate). Returns
-    ``t`` (M,) s, ``sigma`` (M, 20), ``cep_m`` at the end, ``p_end`` (20, 20) and ``heading_change_deg``
+    ``t`` (M,) s, ``sigma`` (M, 44; NaN for the states the filter does not carry), ``cep_m`` at the end,
+    ``p_end`` (n, n) over the filter's states (:func:`state_index`) and ``heading_change_deg``
     (total absolute heading change while moving). With ``budget``, also ``budget``: the final
     covariance split by error source (:data:`BUDGET_INITIAL`, :data:`BUDGET_NOISE`,
     :data:`BUDGET_MEASUREMENT`; each source propagated alone through the filter's own gains, so
@@ -100,8 +105,10 @@ def covariance_analysis(trajectory, grade: GradeErrors, cfg: LandInsConfig = Lan
     k = max(1, int(round(cfg.update_s / dt_tr)))
     idx = np.arange(0, len(tr.t), k)
     dt = k * dt_tr
-    nst = _states(cfg)
-    P = _initial_covariance(grade, cfg, float(tr.heading[0]))[:nst, :nst]
+    ix = state_index(cfg, grade)
+    nst = len(ix)
+    sub = np.ix_(ix, ix)
+    P = _initial_covariance(grade, cfg, float(tr.heading[0]))[sub]
     w_ie_all = EARTH_RATE * np.stack([np.cos(tr.lat), 0 * tr.lat, -np.sin(tr.lat)], 1)
     f_n = np.einsum("nij,nj->ni", tr.c_bn, tr.f_b)
     still = _static_mask(tr.speed) if static is None else static
@@ -111,27 +118,28 @@ def covariance_analysis(trajectory, grade: GradeErrors, cfg: LandInsConfig = Lan
     r_zarupt = (grade.gyro_white / np.sqrt(cfg.zarupt_window_s) + cfg.zarupt_sigma_floor) ** 2
     F_all, gqg_all = error_dynamics(tr.c_bn[idx], f_n[idx], tr.v_ned[idx], tr.lat[idx], tr.h[idx], grade, cfg,
                                     tr.omega_ib_b[idx], tr.f_b[idx])
-    phi_all, q_all = discretise(F_all[:, :nst, :nst], gqg_all[:, :nst, :nst], dt)
-    gqg_all = gqg_all[:, :nst, :nst] if budget else None
+    gqg_all = gqg_all[:, ix][:, :, ix]
+    phi_all, q_all = discretise(F_all[:, ix][:, :, ix], gqg_all, dt)
+    gqg_all = gqg_all if budget else None
     del F_all
-    parts = _budget_parts(P, nst) if budget else {}
+    parts = _budget_parts(P, ix) if budget else {}
     for j, i in enumerate(idx):
         if j > 0:
             P = phi_all[j] @ P @ phi_all[j].T + q_all[j]
             for name, part in parts.items():
                 parts[name] = phi_all[j] @ part @ phi_all[j].T
             for name, states in BUDGET_NOISE.items() if budget else ():  # eq. 11 is linear in G Q Gᵀ: a share each
-                g_s = _block(gqg_all[j], states, nst)
+                g_s = _block(gqg_all[j], states, ix)
                 parts[name] += 0.5 * (phi_all[j] @ g_s @ phi_all[j].T + g_s) * dt
         if still[i]:
-            H = _zupt_zarupt_rows(tr.c_bn[i], w_ie_all[i], tr.omega_ib_b[i], nst)
+            H = _zupt_zarupt_rows(tr.c_bn[i], w_ie_all[i], tr.omega_ib_b[i], ix)
             r = np.concatenate([np.full(3, cfg.zupt_sigma ** 2), r_zarupt])
-            cross = _zarupt_cross(tr.c_bn[i], f_n[i], grade, cfg, nst)
+            cross = _zarupt_cross(tr.c_bn[i], f_n[i], grade, cfg, ix)
             noise = {"ZUPT noise": slice(0, 3), GYRO_WHITE: slice(3, 6)}
         else:
             w_nb_b = tr.omega_ib_b[i] - tr.c_bn[i].T @ (w_ie_all[i])
             _, H = nhc_jacobian(tr.c_bn[i], c_bp, tr.v_ned[i], w_nb_b, zr)
-            H = H[:, :nst]
+            H = H[:, ix]
             r = np.full(2, cfg.nhc_sigma ** 2)
             cross = np.zeros((nst, 2))
             noise = {"NHC noise": slice(0, 2)}
@@ -146,7 +154,7 @@ def covariance_analysis(trajectory, grade: GradeErrors, cfg: LandInsConfig = Lan
                     c_k = ikh @ cross[:, sl] @ gain[:, sl].T
                     parts[name] -= c_k + c_k.T
         P, _, _ = sequential_update(P, H, np.zeros(len(r)), r, cross=cross)
-        sig[j, :nst] = np.sqrt(np.diag(P))
+        sig[j, ix] = np.sqrt(np.diag(P))
     moving = ~still
     dpsi = np.abs(np.diff(np.unwrap(tr.heading)))[moving[1:]].sum()
     out = {"t": tr.t[idx], "sigma": sig, "p_end": P, "cep_m": cep(P[:2, :2]),
@@ -156,18 +164,20 @@ def covariance_analysis(trajectory, grade: GradeErrors, cfg: LandInsConfig = Lan
     return out
 
 
-def _block(m: np.ndarray, states: tuple[int, ...], nst: int) -> np.ndarray:
-    """``m`` (nst, nst) with all but the rows and columns ``states`` (those below ``nst``) zeroed."""
-    ix = [k for k in states if k < nst]
-    out = np.zeros((nst, nst))
-    out[np.ix_(ix, ix)] = m[np.ix_(ix, ix)]
+def _block(m: np.ndarray, states: tuple[int, ...], ix: np.ndarray) -> np.ndarray:
+    """``m`` (n, n) over the filter's states ``ix`` with all but the rows and columns of ``states`` (indices of
+    the full layout; those the filter carries) zeroed."""
+    pos = [p for p, k in enumerate(ix) if k in states]
+    out = np.zeros_like(m)
+    out[np.ix_(pos, pos)] = m[np.ix_(pos, pos)]
     return out
 
 
-def _budget_parts(P0: np.ndarray, nst: int) -> dict[str, np.ndarray]:
-    """The starting covariance of every budget source: its block of ``P0``, zeros for the noises."""
-    parts = {name: _block(P0, states, nst) for name, states in BUDGET_INITIAL.items() if states[0] < nst}
-    parts.update({name: np.zeros((nst, nst)) for name in (*BUDGET_NOISE, *BUDGET_MEASUREMENT)})
+def _budget_parts(P0: np.ndarray, ix: np.ndarray) -> dict[str, np.ndarray]:
+    """The starting covariance of every budget source the filter ``ix`` carries: its block of ``P0``, zeros
+    for the noises."""
+    parts = {name: _block(P0, states, ix) for name, states in BUDGET_INITIAL.items() if set(states) & set(ix)}
+    parts.update({name: np.zeros_like(P0) for name in (*BUDGET_NOISE, *BUDGET_MEASUREMENT)})
     return parts
 
 
@@ -177,26 +187,21 @@ def speed_test(speed: float, sigma_v: float, cfg: LandInsConfig) -> bool:
     return speed <= min(max(cfg.xi_speed * sigma_v, cfg.creep_speed), cfg.zupt_max_speed)
 
 
-def _states(cfg: LandInsConfig) -> int:
-    """The filter's state count, checked."""
-    if cfg.states not in STATE_COUNTS:
-        raise ValueError(f"land INS: states={cfg.states} is not one of {', '.join(map(str, STATE_COUNTS))}")
-    return int(cfg.states)
-
-
-def _zupt_zarupt_rows(c_bn: np.ndarray, w_ie: np.ndarray, omega_b: np.ndarray, nst: int) -> np.ndarray:
-    """H (6, nst) of ZUPT (eq. 31-34) and ZARUPT (eq. 35-40; rotated gyro mean minus the Earth rate),
-    the latter with the gyro scale-factor states when the filter has them."""
+def _zupt_zarupt_rows(c_bn: np.ndarray, w_ie: np.ndarray, omega_b: np.ndarray, ix: np.ndarray) -> np.ndarray:
+    """H (6, len(ix)) of ZUPT (eq. 31-34) and ZARUPT (eq. 35-40; rotated gyro mean minus the Earth rate),
+    the latter with the gyro scale-factor and bias-instability states when the filter ``ix`` has them."""
     H = np.zeros((6, N_STATES))
     H[:3, V_] = np.eye(3)
     H[3:, A_] = -skew(w_ie)
     H[3:, BG] = c_bn
+    H[3:, GG] = c_bn
     H[3:, SG] = c_bn @ scale_columns(omega_b)
-    return H[:, :nst]
+    return H[:, ix]
 
 
-def _zarupt_cross(c_bn: np.ndarray, f_n: np.ndarray, grade: GradeErrors, cfg: LandInsConfig, nst: int) -> np.ndarray:
-    """``E[δx vᵀ]`` (nst, 6) of the prior error with the noises of the ZUPT + ZARUPT rows (:func:`_zupt_zarupt_rows`).
+def _zarupt_cross(c_bn: np.ndarray, f_n: np.ndarray, grade: GradeErrors, cfg: LandInsConfig,
+                  ix: np.ndarray) -> np.ndarray:
+    """``E[δx vᵀ]`` (len(ix), 6) of the prior error with the noises of the ZUPT + ZARUPT rows (:func:`_zupt_zarupt_rows`).
 
     The ZARUPT's noise is the rotated mean ``Ĉ n̄`` of the gyro's white noise over its window (the last
     ``zarupt_window_s`` of the step), and the attitude has just integrated the same samples: the
@@ -210,11 +215,11 @@ def _zarupt_cross(c_bn: np.ndarray, f_n: np.ndarray, grade: GradeErrors, cfg: La
     m = np.zeros((N_STATES, 6))
     m[A_, 3:], m[V_, 3:], _ = integrated_noise_cross(c_bn @ np.diag(grade.gyro_white ** 2) @ c_bn.T, f_n,
                                                      min(cfg.zarupt_window_s, cfg.update_s))
-    return m[:nst]
+    return m[ix]
 
 
 def _initial_covariance(grade: GradeErrors, cfg: LandInsConfig, heading0: float = 0.0) -> np.ndarray:
-    """Initial covariance (38, 38) after coarse levelling at heading ``heading0`` (rad).
+    """Initial covariance (44, 44) after coarse levelling at heading ``heading0`` (rad).
 
     Levelling makes the measured specific force vertical, so the tilt absorbs the horizontal
     accelerometer bias: with ``δv̇ = -[f×] δψ + C b_a`` and ``f = (0, 0, -g)``, ``δψ_N = -b_E / g`` and
@@ -238,7 +243,7 @@ def _initial_covariance(grade: GradeErrors, cfg: LandInsConfig, heading0: float 
 
 
 def _initial_sigma(grade: GradeErrors, cfg: LandInsConfig) -> np.ndarray:
-    """Initial 1-sigma of the 38 states (a filter of fewer uses the leading ones)."""
+    """Initial 1-sigma of the 44 states (a filter uses those of :func:`state_index`)."""
     s = np.empty(N_STATES)
     s[P_] = cfg.pos0
     s[V_] = cfg.vel0
@@ -249,14 +254,16 @@ def _initial_sigma(grade: GradeErrors, cfg: LandInsConfig) -> np.ndarray:
     s[LA] = cfg.lever0
     s[SG] = np.concatenate([grade.gyro_scale, np.repeat(grade.gyro_misalignment, 2)])
     s[SA] = np.concatenate([grade.accel_scale, np.repeat(grade.accel_misalignment, 2)])
+    s[GG], s[GA] = grade.gyro_gm_sigma, grade.accel_gm_sigma  # the Gauss-Markov starts in its steady state
     return np.maximum(s, 1e-12)
 
 
 @dataclass
 class LandInsResult:
     """Filter output at each step (M,): ``t`` s, ``lat``, ``lon`` rad, ``h`` m, ``v_ned`` (M, 3),
-    ``rph`` (M, 3) rad, ``sigma`` (M, 20), ``mode`` (M,) 'zupt' | 'nhc' | 'none', ``weights_min`` (M,)
-    the smallest M-estimator weight of the step, ``gyro_bias`` / ``accel_bias`` (M, 3),
+    ``rph`` (M, 3) rad, ``sigma`` (M, 44; NaN for the states the filter does not carry), ``mode`` (M,)
+    'zupt' | 'nhc' | 'none', ``weights_min`` (M,) the smallest M-estimator weight of the step,
+    ``gyro_bias`` / ``accel_bias`` (M, 3) (the random constant plus the Gauss-Markov bias instability),
     ``boresight`` (M, 2) rad, ``lever_arm`` (M, 3) m; ``gyro_scale`` / ``accel_scale`` (M, 9) the
     scale-factor and misalignment estimates (:func:`scale_columns` order; zeros without those states)."""
 
@@ -323,9 +330,13 @@ def run_land_ins(samples, lat0: float, lon0: float, h0: float, heading0: float, 
     b_a, b_g = np.zeros(3), np.zeros(3)
     bore, lever = np.zeros(2), np.zeros(3)
     s_g, s_a = np.zeros(9), np.zeros(9)  # scale-factor and misalignment estimates
-    nst = _states(cfg)
-    P = _initial_covariance(grade, cfg, heading0)[:nst, :nst]
+    beta_g, beta_a = np.zeros(3), np.zeros(3)  # bias-instability (Gauss-Markov) estimates, rad/s and m/s²
+    ix = state_index(cfg, grade)
+    nst = len(ix)
+    sub = np.ix_(ix, ix)
+    P = _initial_covariance(grade, cfg, heading0)[sub]
     step = max(1, int(round(cfg.update_s / dt)))
+    decay_g, decay_a = (np.exp(-step * dt / np.asarray(tau, float)) for tau in (grade.gyro_gm_tau, grade.accel_gm_tau))
     m = (n - 1) // step + 1
     out = {k: np.full((m, 3), np.nan) for k in ("pos", "v", "rph", "ba", "bg", "la")}
     out.update({k: np.zeros((m, 9)) for k in ("sg", "sa")})
@@ -340,14 +351,15 @@ def run_land_ins(samples, lat0: float, lon0: float, h0: float, heading0: float, 
         a = j * step
         if j > 0:
             sl = slice(a - step, a + 1)
-            gy = (samples.gyro[sl] - b_g) @ (np.eye(3) - _matrix(s_g)).T
-            ac = (samples.accel[sl] - b_a) @ (np.eye(3) - _matrix(s_a)).T
+            gy = (samples.gyro[sl] - b_g - beta_g) @ (np.eye(3) - _matrix(s_g)).T
+            ac = (samples.accel[sl] - b_a - beta_a) @ (np.eye(3) - _matrix(s_a)).T
+            beta_g, beta_a = beta_g * decay_g, beta_a * decay_a  # the estimate follows the process's mean
             nav = mechanise(lat, lon, h, v, c, gy, ac, dt)
             c_prev = c
             lat, lon, h, v, c = float(nav.lat[-1]), float(nav.lon[-1]), float(nav.h[-1]), nav.v_ned[-1], nav.c_bn[-1]
             f_n = 0.5 * (c_prev + c) @ ac.mean(axis=0)
             F, gqg = error_dynamics(c, f_n, v, lat, h, grade, cfg, gy.mean(axis=0), ac.mean(axis=0))
-            phi, q = discretise(F[:nst, :nst], gqg[:nst, :nst], step * dt)
+            phi, q = discretise(F[sub], gqg[sub], step * dt)
             P = phi @ P @ phi.T + q
             # validity (eq. 41-45)
             w_ie = EARTH_RATE * np.array([np.cos(lat), 0.0, -np.sin(lat)])
@@ -361,10 +373,10 @@ def run_land_ins(samples, lat0: float, lon0: float, h0: float, heading0: float, 
             acc_static = np.linalg.norm(a_n) <= cfg.xi_acc
             w_nb_b = gw - c.T @ (w_ie + w_en)
             if gyro_static and acc_static and speed_static:
-                H = _zupt_zarupt_rows(c, w_ie, gw, nst)
+                H = _zupt_zarupt_rows(c, w_ie, gw, ix)
                 z = np.concatenate([v, c @ gw - w_ie])  # predicted minus measured (0): H δx + noise
                 r = np.concatenate([np.full(3, cfg.zupt_sigma ** 2), r_zarupt])
-                cross = _zarupt_cross(c, f_n, grade, cfg, nst)
+                cross = _zarupt_cross(c, f_n, grade, cfg, ix)
                 mode[j] = "zupt"
             elif not gyro_static or not acc_static or np.linalg.norm(v) > 0.5:
                 if abs(w_nb_b[2]) > cfg.nhc_max_rate:
@@ -373,7 +385,7 @@ def run_land_ins(samples, lat0: float, lon0: float, h0: float, heading0: float, 
                 else:
                     c_bp = _c_bp(bore)
                     v_p, Hf = nhc_jacobian(c, c_bp, v, w_nb_b, lever)
-                    H, z, r, cross = Hf[:, :nst], v_p, np.full(2, cfg.nhc_sigma ** 2), None
+                    H, z, r, cross = Hf[:, ix], v_p, np.full(2, cfg.nhc_sigma ** 2), None
                     mode[j] = "nhc"
             else:
                 H = None
@@ -381,7 +393,8 @@ def run_land_ins(samples, lat0: float, lon0: float, h0: float, heading0: float, 
             if H is not None:
                 P, dx, wts = sequential_update(P, H, z, r, scaling, cross=cross)
                 wmin[j] = float(wts.min())
-                dx = np.concatenate([dx, np.zeros(N_STATES - nst)])
+                dx_ix, dx = dx, np.zeros(N_STATES)
+                dx[ix] = dx_ix
                 rm, rn = radii(lat)
                 lat -= dx[0] / (rm + h)
                 lon -= dx[1] / ((rn + h) * np.cos(lat))
@@ -391,16 +404,17 @@ def run_land_ins(samples, lat0: float, lon0: float, h0: float, heading0: float, 
                 b_a, b_g = b_a + dx[BA], b_g + dx[BG]
                 bore, lever = bore - dx[BW], lever - dx[LA]
                 s_g, s_a = s_g + dx[SG], s_a + dx[SA]
+                beta_g, beta_a = beta_g + dx[GG], beta_a + dx[GA]
         else:
             mode[j] = "start"
         out["pos"][j] = (lat, lon, h)
         out["v"][j] = v
         out["rph"][j] = (np.arctan2(c[2, 1], c[2, 2]), -np.arcsin(np.clip(c[2, 0], -1.0, 1.0)),
                          np.arctan2(c[1, 0], c[0, 0]))
-        out["ba"][j], out["bg"][j], out["la"][j] = b_a, b_g, lever
+        out["ba"][j], out["bg"][j], out["la"][j] = b_a + beta_a, b_g + beta_g, lever
         out["sg"][j], out["sa"][j] = s_g, s_a
         bw_out[j] = bore
-        sig[j, :nst] = np.sqrt(np.diag(P))
+        sig[j, ix] = np.sqrt(np.diag(P))
     t = samples.t[np.arange(m) * step]
     return LandInsResult(t, out["pos"][:, 0], out["pos"][:, 1], out["pos"][:, 2], out["v"], out["rph"], sig,
                          mode.astype(str), wmin, out["bg"], out["ba"], bw_out, out["la"],

@@ -6,13 +6,15 @@ states of eq. 2, the boresight and lever arm of eq. 7 (20 states, the paper's fi
 "additional error states" the paper adds as random constants for its azimuth analysis (sec. 4.1,
 ref. [18]): the gyro's and the accelerometer's scale factor (3) and misalignment (6) each,
 ``δs = (s_x, s_y, s_z, m_xy, m_xz, m_yx, m_yz, m_zx, m_zy)`` with the residual error ``δM u`` of
-the compensated output ``(I - Ŝ)(y - b̂)`` (true minus estimated, like the biases). A filter of
-``states`` = 15, 20, 29 or 38 uses the leading block. Sign conventions and the equations are
-in :mod:`workbench.nav.land_ins`.
+the compensated output ``(I - Ŝ)(y - b̂)`` (true minus estimated, like the biases), then the gyro's
+and the accelerometer's bias instability ``δβ_g``, ``δβ_a`` (3 each, body; first-order Gauss-Markov
+states of :mod:`workbench.nav.bias_model`, in a filter whose grade gives them a sigma). A filter of
+``states`` = 15, 20, 29 or 38 uses the leading block plus those (:func:`state_index`). Sign
+conventions and the equations are in :mod:`workbench.nav.land_ins`.
 
-Public: :data:`N_STATES`, the slices ``P_, V_, A_, BA, BG, BW, LA, SG, SA``, :class:`GradeErrors`,
-:func:`grade_errors`, :func:`in_run_rrw`, :class:`LandInsConfig`, :func:`scale_columns`, :func:`error_dynamics`,
-:func:`discretise`, :func:`nhc_jacobian`.
+Public: :data:`N_STATES`, the slices ``P_, V_, A_, BA, BG, BW, LA, SG, SA, GG, GA``, :class:`GradeErrors`,
+:func:`grade_errors`, :func:`in_run_rrw`, :class:`LandInsConfig`, :func:`state_index`, :func:`scale_columns`,
+:func:`error_dynamics`, :func:`discretise`, :func:`nhc_jacobian`.
 """
 
 from __future__ import annotations
@@ -22,13 +24,16 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from workbench.earth import EARTH_RATE, normal_gravity, radii
+from workbench.nav.bias_model import gauss_markov_from_allan
 from workbench.nav.strapdown import skew
 
-N_STATES = 38
+N_STATES = 44
 STATE_COUNTS = (15, 20, 29, 38)
+BIAS_MODELS = ("gauss_markov", "random_walk")
 P_, V_, A_, BA, BG, BW, LA = (slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), slice(12, 15),
                                slice(15, 17), slice(17, 20))
 SG, SA = slice(20, 29), slice(29, 38)
+GG, GA = slice(38, 41), slice(41, 44)  # gyro / accel bias instability (Gauss-Markov)
 
 
 @dataclass(frozen=True)
@@ -39,7 +44,9 @@ class GradeErrors:
     m/s/√s, ``gyro_white`` rad/√s; ``accel_bias_rw`` m/s²/√s, ``gyro_bias_rw`` rad/s/√s;
     ``gyro_scale``, ``gyro_misalignment``, ``accel_scale``, ``accel_misalignment`` (dimensionless,
     per axis: the diagonal of M and the off-diagonal terms of its row; random constants, the
-    initial sigma of the scale-factor states, 0 = not modelled).
+    initial sigma of the scale-factor states, 0 = not modelled); ``gyro_gm_sigma`` rad/s,
+    ``accel_gm_sigma`` m/s² and ``gyro_gm_tau``, ``accel_gm_tau`` s: the bias instability as a first-order
+    Gauss-Markov state of that steady-state sigma and correlation time (sigma 0 = no such state).
     """
 
     accel_bias: np.ndarray
@@ -52,12 +59,20 @@ class GradeErrors:
     gyro_misalignment: np.ndarray = field(default_factory=lambda: np.zeros(3))
     accel_scale: np.ndarray = field(default_factory=lambda: np.zeros(3))
     accel_misalignment: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    gyro_gm_sigma: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    gyro_gm_tau: np.ndarray = field(default_factory=lambda: np.full(3, np.inf))
+    accel_gm_sigma: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    accel_gm_tau: np.ndarray = field(default_factory=lambda: np.full(3, np.inf))
 
 
-def grade_errors(spec, bias_correlation_s: float = 3600.0, in_run_bias_s: float | None = None) -> GradeErrors:
+def grade_errors(spec, bias_correlation_s: float = 3600.0, in_run_bias_s: float | None = None,
+                 bias_model: str = "gauss_markov") -> GradeErrors:
     """The errors a grade (``workbench.grades.SensorSpec``) tells the filter: table 3-1's bias,
-    scale factor, misalignment and noise; the bias random walk ``sqrt(rrw² + B² / τ)`` from the
-    grade's rate random walk and bias instability (as ``workbench.nav.compensate.process_noise``).
+    scale factor, misalignment and noise. The grade's bias instability ``B``: with ``bias_model``
+    ``"gauss_markov"`` a Gauss-Markov state of :func:`workbench.nav.bias_model.gauss_markov_from_allan`
+    (sigma 1.076 B, correlation time at the grade's Allan minimum / 1.893) beside the rate random walk;
+    with ``"random_walk"`` (before) the bias random walk ``sqrt(rrw² + B² / τ)``, ``τ`` =
+    ``bias_correlation_s`` (as ``workbench.nav.compensate.process_noise``).
 
     ``in_run_bias_s``: the grade's bias (table 3-1's "Bias" / "Rate Bias") is also an in-run
     bias that is drawn anew over that time, a random walk of density ``bias √(2 / in_run_bias_s)``
@@ -66,15 +81,26 @@ def grade_errors(spec, bias_correlation_s: float = 3600.0, in_run_bias_s: float 
     noise parameter" (eq. 4-5) whose value table 3-1 does not give: :func:`in_run_rrw` and
     docs/navigation.md, "Table 4-1 and eq. 49".
     """
+    if bias_model not in BIAS_MODELS:
+        raise ValueError(f"land INS: bias_model={bias_model!r} is not one of {', '.join(BIAS_MODELS)}")
     g, a = spec.specs["gyro"], spec.specs["accel"]
+    gm = bias_model == "gauss_markov"
 
     def rw(ts):
-        return np.sqrt(ts.noise.rrw ** 2 + ts.noise.bias_instability ** 2 / bias_correlation_s
+        return np.sqrt(ts.noise.rrw ** 2 + (0.0 if gm else ts.noise.bias_instability ** 2 / bias_correlation_s)
                        + in_run_rrw(ts.bias, in_run_bias_s) ** 2)
 
+    def markov(ts):
+        if not gm:
+            return np.zeros(3), np.full(3, np.inf)
+        n = ts.noise
+        return gauss_markov_from_allan(n.white, n.bias_instability, n.rrw, n.quantization)
+
+    (sg_g, tau_g), (sg_a, tau_a) = markov(g), markov(a)
     return GradeErrors(np.asarray(a.bias, float), np.asarray(g.bias, float), a.noise.white, g.noise.white,
                        rw(a), rw(g), np.asarray(g.scale_factor, float), np.asarray(g.misalignment, float),
-                       np.asarray(a.scale_factor, float), np.asarray(a.misalignment, float))
+                       np.asarray(a.scale_factor, float), np.asarray(a.misalignment, float),
+                       sg_g, tau_g, sg_a, tau_a)
 
 
 def in_run_rrw(bias: np.ndarray, in_run_bias_s: float | None) -> np.ndarray:
@@ -129,6 +155,18 @@ class LandInsConfig:
     states: int = 20
 
 
+def state_index(cfg: LandInsConfig, grade: GradeErrors) -> np.ndarray:
+    """Indices (into the :data:`N_STATES` layout) of the states a filter of ``cfg.states`` carries: the leading
+    block, then the gyro's and the accelerometer's Gauss-Markov bias instability where ``grade`` gives it a sigma."""
+    if cfg.states not in STATE_COUNTS:
+        raise ValueError(f"land INS: states={cfg.states} is not one of {', '.join(map(str, STATE_COUNTS))}")
+    ix = [np.arange(cfg.states)]
+    for sigma, sl in ((grade.gyro_gm_sigma, GG), (grade.accel_gm_sigma, GA)):
+        if np.any(np.asarray(sigma) > 0):
+            ix.append(np.arange(sl.start, sl.stop))
+    return np.concatenate(ix)
+
+
 def _skew_n(v: np.ndarray) -> np.ndarray:
     """Cross-product matrices (..., 3, 3) of vectors (..., 3)."""
     k = np.zeros(v.shape[:-1] + (3, 3))
@@ -152,12 +190,14 @@ def scale_columns(u_b: np.ndarray) -> np.ndarray:
 def error_dynamics(c_bn: np.ndarray, f_n: np.ndarray, v_n: np.ndarray, lat, h,
                    grade: GradeErrors, cfg: LandInsConfig, omega_b: np.ndarray | None = None,
                    f_b: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Continuous ``F`` and ``G Q Gᵀ`` (…, 38, 38) at points of the trajectory (module docstring).
+    """Continuous ``F`` and ``G Q Gᵀ`` (…, 44, 44) at points of the trajectory (module docstring).
 
     ``c_bn`` (…, 3, 3), ``f_n``, ``v_n`` (…, 3), ``lat`` rad and ``h`` m (…): one point or a batch.
     ``omega_b`` (rad/s) and ``f_b`` (m/s²) (…, 3), the body-frame rate and specific force, feed the
     scale-factor states (``δψ̇ += C_b^n W(ω) δs_g``, ``δv̇ += C_b^n W(f) δs_a``); without them those
-    columns are zero. A filter of ``cfg.states`` uses the leading block.
+    columns are zero. The Gauss-Markov bias instability enters like the biases (``C_b^n δβ``) and
+    decays, ``δβ̇ = -δβ / T + w``, ``E[w²] = 2 σ² / T``. A filter uses the rows and columns of
+    :func:`state_index`.
     """
     lat, h = np.asarray(lat, float), np.asarray(h, float)
     shape = lat.shape
@@ -179,6 +219,10 @@ def error_dynamics(c_bn: np.ndarray, f_n: np.ndarray, v_n: np.ndarray, lat, h,
     F[..., 6, 0] = EARTH_RATE * np.sin(lat) / (rm + h)  # -∂ω_ie/∂r_N
     F[..., 8, 0] = EARTH_RATE * np.cos(lat) / (rm + h)
     F[..., A_, BG] = c_bn
+    F[..., A_, GG] = c_bn
+    F[..., V_, GA] = c_bn
+    F[..., GG, GG] = -np.diag(1.0 / np.asarray(grade.gyro_gm_tau, float))
+    F[..., GA, GA] = -np.diag(1.0 / np.asarray(grade.accel_gm_tau, float))
     if omega_b is not None:
         F[..., A_, SG] = c_bn @ scale_columns(np.asarray(omega_b, float))
     if f_b is not None:
@@ -190,17 +234,19 @@ def error_dynamics(c_bn: np.ndarray, f_n: np.ndarray, v_n: np.ndarray, lat, h,
     qd[BG] = grade.gyro_bias_rw ** 2
     qd[BW] = cfg.boresight_rw ** 2
     qd[LA] = cfg.lever_rw ** 2
+    qd[GG] = 2.0 * np.asarray(grade.gyro_gm_sigma, float) ** 2 / np.asarray(grade.gyro_gm_tau, float)
+    qd[GA] = 2.0 * np.asarray(grade.accel_gm_sigma, float) ** 2 / np.asarray(grade.accel_gm_tau, float)
     gqg = np.zeros(shape + (N_STATES, N_STATES))
     gqg[..., V_, V_] = (c_bn * qd[V_]) @ np.swapaxes(c_bn, -1, -2)  # C diag(q) Cᵀ
     gqg[..., A_, A_] = (c_bn * qd[A_]) @ np.swapaxes(c_bn, -1, -2)
-    idx = np.arange(9, 20)  # the scale-factor states are random constants (no process noise)
-    gqg[..., idx, idx] = qd[9:20]
+    idx = np.r_[9:20, 38:44]  # the scale-factor states are random constants (no process noise)
+    gqg[..., idx, idx] = qd[idx]
     return F, gqg
 
 
 def discretise(F: np.ndarray, gqg: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """Second-order transition ``Φ = I + F dt + (F dt)²/2`` and ``Q_k = (Φ GQGᵀ Φᵀ + GQGᵀ) dt / 2`` (eq. 11);
-    one (20, 20) pair or a batch (…, 20, 20)."""
+    one (n, n) pair or a batch (…, n, n)."""
     fd = F * dt
     phi = np.eye(F.shape[-1]) + fd + 0.5 * fd @ fd
     return phi, 0.5 * (phi @ gqg @ np.swapaxes(phi, -1, -2) + gqg) * dt
