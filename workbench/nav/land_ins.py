@@ -128,7 +128,7 @@ def covariance_analysis(trajectory, grade: GradeErrors, cfg: LandInsConfig = Lan
             P = phi_all[j] @ P @ phi_all[j].T + q_all[j]
             for name, part in parts.items():
                 parts[name] = phi_all[j] @ part @ phi_all[j].T
-            for name, states in BUDGET_NOISE.items() if budget else ():  # eq. 11 is linear in G Q Gᵀ: a share each
+            for name, states in ((k, v) for k, v in BUDGET_NOISE.items() if k in parts):  # eq. 11: linear in GQGᵀ
                 g_s = _block(gqg_all[j], states, ix)
                 parts[name] += 0.5 * (phi_all[j] @ g_s @ phi_all[j].T + g_s) * dt
         if still[i]:
@@ -177,7 +177,8 @@ def _budget_parts(P0: np.ndarray, ix: np.ndarray) -> dict[str, np.ndarray]:
     """The starting covariance of every budget source the filter ``ix`` carries: its block of ``P0``, zeros
     for the noises."""
     parts = {name: _block(P0, states, ix) for name, states in BUDGET_INITIAL.items() if set(states) & set(ix)}
-    parts.update({name: np.zeros_like(P0) for name in (*BUDGET_NOISE, *BUDGET_MEASUREMENT)})
+    parts.update({name: np.zeros_like(P0) for name, states in BUDGET_NOISE.items() if set(states) & set(ix)})
+    parts.update({name: np.zeros_like(P0) for name in BUDGET_MEASUREMENT})
     return parts
 
 
@@ -265,7 +266,9 @@ class LandInsResult:
     'zupt' | 'nhc' | 'none', ``weights_min`` (M,) the smallest M-estimator weight of the step,
     ``gyro_bias`` / ``accel_bias`` (M, 3) (the random constant plus the Gauss-Markov bias instability),
     ``boresight`` (M, 2) rad, ``lever_arm`` (M, 3) m; ``gyro_scale`` / ``accel_scale`` (M, 9) the
-    scale-factor and misalignment estimates (:func:`scale_columns` order; zeros without those states)."""
+    scale-factor and misalignment estimates (:func:`scale_columns` order; zeros without those states);
+    ``bias_sigma`` (M, 6) the 1-sigma of ``gyro_bias`` and ``accel_bias`` (the constant and the Gauss-Markov
+    parts with their covariance)."""
 
     t: np.ndarray
     lat: np.ndarray
@@ -283,6 +286,7 @@ class LandInsResult:
     notes: list = field(default_factory=list)
     gyro_scale: np.ndarray | None = None
     accel_scale: np.ndarray | None = None
+    bias_sigma: np.ndarray | None = None
 
     @property
     def warnings(self) -> tuple[str, ...]:
@@ -341,6 +345,10 @@ def run_land_ins(samples, lat0: float, lon0: float, h0: float, heading0: float, 
     out = {k: np.full((m, 3), np.nan) for k in ("pos", "v", "rph", "ba", "bg", "la")}
     out.update({k: np.zeros((m, 9)) for k in ("sg", "sa")})
     sig = np.full((m, N_STATES), np.nan)
+    total = np.zeros((6, N_STATES))  # gyro, accel bias = the random constant + the Gauss-Markov state
+    total[0:3, BG] = total[0:3, GG] = total[3:6, BA] = total[3:6, GA] = np.eye(3)
+    total = total[:, ix]
+    bias_sig = np.full((m, 6), np.nan)
     bw_out = np.full((m, 2), np.nan)
     mode = np.empty(m, dtype=object)
     wmin = np.ones(m)
@@ -415,10 +423,11 @@ def run_land_ins(samples, lat0: float, lon0: float, h0: float, heading0: float, 
         out["sg"][j], out["sa"][j] = s_g, s_a
         bw_out[j] = bore
         sig[j, ix] = np.sqrt(np.diag(P))
+        bias_sig[j] = np.sqrt(np.einsum("ij,jk,ik->i", total, P, total))
     t = samples.t[np.arange(m) * step]
     return LandInsResult(t, out["pos"][:, 0], out["pos"][:, 1], out["pos"][:, 2], out["v"], out["rph"], sig,
                          mode.astype(str), wmin, out["bg"], out["ba"], bw_out, out["la"],
-                         gyro_scale=out["sg"], accel_scale=out["sa"])
+                         gyro_scale=out["sg"], accel_scale=out["sa"], bias_sigma=bias_sig)
 
 
 def _matrix(s: np.ndarray) -> np.ndarray:

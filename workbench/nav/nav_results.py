@@ -92,11 +92,12 @@ def land_ins_dict(r) -> dict:
     """End state of a :class:`~workbench.nav.land_ins.LandInsResult`, SI, each estimate with its 1-sigma
     (None for a state the filter lacks); ``modes`` the fraction of steps per update mode."""
     s = r.sigma[-1]
+    b_g, b_a = _bias_sigmas(r)
     out = {"t_end": float(r.t[-1]), "lat": float(r.lat[-1]), "lon": float(r.lon[-1]), "h": float(r.h[-1]),
            "position_sigma": json_value(s[P_]), "v_ned": json_value(r.v_ned[-1]), "v_ned_sigma": json_value(s[V_]),
            "rph": json_value(r.rph[-1]), "attitude_sigma": json_value(s[A_]),
-           "accel_bias": json_value(r.accel_bias[-1]), "accel_bias_sigma": json_value(s[BA]),
-           "gyro_bias": json_value(r.gyro_bias[-1]), "gyro_bias_sigma": json_value(s[BG]),
+           "accel_bias": json_value(r.accel_bias[-1]), "accel_bias_sigma": json_value(b_a),
+           "gyro_bias": json_value(r.gyro_bias[-1]), "gyro_bias_sigma": json_value(b_g),
            "boresight": json_value(r.boresight[-1]), "boresight_sigma": json_value(s[BW]),
            "lever_arm": json_value(r.lever_arm[-1]), "lever_arm_sigma": json_value(s[LA]),
            "modes": {m: float(np.mean(r.mode == m)) for m in sorted(set(r.mode.tolist()))},
@@ -107,18 +108,26 @@ def land_ins_dict(r) -> dict:
     return out
 
 
+def _bias_sigmas(r) -> tuple[np.ndarray, np.ndarray]:
+    """End 1-sigma of a land-INS result's gyro and accel bias (with the Gauss-Markov part where there is one)."""
+    if r.bias_sigma is None:
+        return r.sigma[-1][BG], r.sigma[-1][BA]
+    return r.bias_sigma[-1, :3], r.bias_sigma[-1, 3:]
+
+
 def land_ins_summary(r) -> list[str]:
     """Lines: end position with its horizontal 1-sigma (m); velocity (m/s); attitude (°) with its 1-sigma;
     gyro (°/h) and accelerometer (mg) bias; boresight (mrad) and lever arm (m); the update modes (%)."""
     s = r.sigma[-1]
+    b_g, b_a = _bias_sigmas(r)
     modes = ", ".join(f"{m.upper() if m in ('zupt', 'nhc') else m} "
                       f"{units.to_unit(float(np.mean(r.mode == m)), '%'):.0f} %" for m in sorted(set(r.mode.tolist())))
     return [_position_line("land INS", r.t[-1], r.lat[-1], r.lon[-1], r.h[-1])
             + f" (1-sigma N {s[P_][0]:.1f} m, E {s[P_][1]:.1f} m)",
             "land INS: v_NED " + ", ".join(f"{v:+.3f}" for v in r.v_ned[-1]) + " m/s",
             f"land INS: roll, pitch, heading {_angles(r.rph[-1], s[A_])}",
-            "land INS: gyro bias " + _triad("gyro", r.gyro_bias[-1], s[BG]),
-            "land INS: accel bias " + _triad("accel", r.accel_bias[-1], s[BA]),
+            "land INS: gyro bias " + _triad("gyro", r.gyro_bias[-1], b_g),
+            "land INS: accel bias " + _triad("accel", r.accel_bias[-1], b_a),
             "land INS: boresight pitch, yaw " + ", ".join(
                 units.pm(v, q, "mrad", 3) for v, q in zip(r.boresight[-1], s[BW])) + ", lever arm "
             + ", ".join(f"{v:+.3f}" for v in r.lever_arm[-1]) + " m",
