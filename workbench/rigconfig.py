@@ -88,6 +88,21 @@ def rig_config_from_dict(d: Mapping, source: str = "<rig>") -> RigConfig:
     return _from_schema(parse_rig_file(d, source))
 
 
+RECORD_BYTES_PER_SAMPLE = 300  # memory of one recorded sample while a step is simulated or streamed: measured
+# 283 B (peak RSS of a 2e6- minus a 2e5-sample simulated Allan hold, industrial MEMS, 14 columns)
+
+
+def max_step_samples() -> float:
+    """Samples one step may record: the physical memory over :data:`RECORD_BYTES_PER_SAMPLE`."""
+    import os
+
+    try:
+        ram = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        ram = 1 << 36
+    return ram / RECORD_BYTES_PER_SAMPLE
+
+
 def load_rig_config(name_or_path: str | Path) -> RigConfig:
     """Load ``fixtures/rigs/<name>.yaml`` or a YAML path; ``"sim"`` is the default simulated rig."""
     from workbench.safe_yaml import load_yaml_file
@@ -102,11 +117,21 @@ def load_rig_config(name_or_path: str | Path) -> RigConfig:
     return RigConfig(**{**cfg.__dict__, "path": p})
 
 
-def check_plan(plan, cfg: RigConfig) -> None:
-    """Refuse a plan outside the rig's limits, naming the step; called before anything runs."""
+def check_plan(plan, cfg: RigConfig, sample_rate_hz: float | None = None) -> None:
+    """Refuse a plan outside the rig's limits, naming the step; called before anything runs.
+
+    With the unit's ``sample_rate_hz`` (Hz), a step whose record could not be held in this
+    machine's memory (:func:`max_step_samples`) is refused too (a dwell of 1e12 s was a
+    MemoryError traceback after the session folder was made).
+    """
     tt, ch = cfg.turntable, cfg.chamber
+    most = max_step_samples() if sample_rate_hz is not None else None
     for i, p in enumerate(plan):
         where = f"rig {cfg.name}: step {i} ({p.kind}{', ' + p.label if p.label else ''})"
+        if most is not None and not p.duration_s * sample_rate_hz <= most:  # NaN and inf fail too
+            raise RigLimitError(f"{where}: {p.duration_s:.4g} s at {sample_rate_hz:g} Hz is "
+                                f"{p.duration_s * sample_rate_hz:.3g} samples; a step's record holds at most "
+                                f"{most:.3g} in this machine's memory (about {most / sample_rate_hz / 3600:.3g} h)")
         if not abs(p.table_rate) <= tt.max_rate * (1 + 1e-9):
             raise RigLimitError(f"{where}: table rate {np.degrees(p.table_rate):.1f} °/s exceeds the limit "
                                 f"{np.degrees(tt.max_rate):.1f} °/s")

@@ -131,3 +131,25 @@ def test_an_allan_rate_out_of_range_is_refused_before_the_record_is_read(db, tmp
     path.write_text("".join(f"{(-1) ** k * 0.001 * (k % 7)}\n" for k in range(1000)))
     assert main(["allan", str(path), "--rate", rate, *stat]) == 2
     assert _one_line(capsys).startswith(f"error: --rate {float(rate)!r}: expected a sample rate in 1e-06..1e+07 Hz")
+
+
+@pytest.mark.parametrize("args,match", [
+    (["run", "multiposition", "--seed", "-1", "--dry-run"], "Invalid value for '--seed'"),  # was a SeedSequence traceback
+    (["simulate-fleet", "--procedure", "multiposition", "--grade", "industrial_mems", "--out", "x", "--units", "0"],
+     "Invalid value for '--units'"),  # was exit 0 with nothing done
+    (["batch", "multiposition", ".", "--workers", "0"], "Invalid value for '--workers'"),  # a cluster of 0 workers hung
+])
+def test_a_count_or_seed_out_of_range_is_a_usage_error(db, capsys, args, match):
+    assert main(args) == 2
+    assert match in _one_line(capsys)
+
+
+def test_a_step_too_long_for_memory_is_refused_before_anything_is_written(db, tmp_path, capsys):
+    """A dwell of 1e12 s at 100 Hz (1e14 samples) was a MemoryError traceback after the session folder was made."""
+    assert main(["run", "multiposition", "-o", "dwell_s=1e12", "--dry-run"]) == 2
+    assert "step 0 (static, x-up): 1e+12 s at 100 Hz is 1e+14 samples; a step's record holds at most" in _one_line(capsys)
+    out = tmp_path / "long"
+    assert main(["run", "allan", "-o", "duration_s=1e15", "-o", "soak=false", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and "1e+17 samples" in err.strip().splitlines()[-1]
+    assert not out.exists()

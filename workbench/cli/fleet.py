@@ -15,7 +15,7 @@ def batch(procedure: str = typer.Argument(..., metavar="PROCEDURE"),
           session_dirs: list[Path] = typer.Argument(..., metavar="SESSION_DIR...", help="Session folders."),
           scheduler: str = typer.Option("local", "--scheduler", help="'local' (a LocalCluster on 127.0.0.1), "
                                                                      "'serial', or tcp://HOST:PORT."),
-          workers: int = typer.Option(2, "--workers", help="Workers of the local cluster."),
+          workers: int = typer.Option(2, "--workers", min=1, help="Workers of the local cluster."),
           dashboard: bool = typer.Option(False, "--dashboard", help="Start the Dask dashboard (127.0.0.1:8787)."),
           option: list[str] = typer.Option(None, "--option", "-o", help="Analysis option key=value."),
           no_store: bool = typer.Option(False, "--no-store")) -> None:
@@ -50,10 +50,10 @@ def batch(procedure: str = typer.Argument(..., metavar="PROCEDURE"),
 
 
 def simulate_fleet_cmd(grade: str = typer.Option(..., "--grade", help="Grade name or fixture path."),
-                       units: int = typer.Option(..., "--units", help="Number of units."),
+                       units: int = typer.Option(..., "--units", min=1, help="Number of units."),
                        procedure: str = typer.Option(..., "--procedure"),
                        out_dir: Path = typer.Option(..., "--out"),
-                       seed: int = typer.Option(1, "--seed", help="Seed of the first unit; unit k uses seed + k."),
+                       seed: int = typer.Option(1, "--seed", min=0, help="Seed of the first unit; unit k uses seed + k."),
                        option: list[str] = typer.Option(None, "--option", "-o", help="Sequence option key=value.")
                        ) -> None:
     """Record a procedure for N simulated units of one grade (one session folder per unit)."""

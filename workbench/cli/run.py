@@ -138,7 +138,7 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
         unit: str = typer.Option("industrial_mems", "--unit",
                                   help="Unit grade fixture (fixtures/units/*.yaml) or grade name."),
         rig: str = typer.Option("sim", "--rig", help="'sim' or a rig configuration file (fixtures/rigs/*.yaml)."),
-        seed: int = typer.Option(1, "--seed", help="Seed of the simulated unit and its noise."),
+        seed: int = typer.Option(1, "--seed", min=0, help="Seed of the simulated unit and its noise."),
         serial: str = typer.Option(None, "--serial", callback=_safe_serial,
                                    help="Serial of the unit under test (on a real rig; default: the simulated "
                                         "unit's, <grade>-<seed>); letters, digits and . _ + -."),
@@ -184,7 +184,7 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
                 if applies(p, spec):
                     seq = p.sequence(spec, **split(p, campaign_options.get(p.NAME))[0])
                     _print_sequence(seq)
-                    check_plan(seq.expand(), cfg)
+                    check_plan(seq.expand(), cfg, spec.sample_rate_hz)
             return
         totals = _step_totals(spec, campaign_options)
         with _progress_bar() as bar:
@@ -210,7 +210,7 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
     seq = proc.sequence(spec, **seq_options)
     _print_sequence(seq)
     if dry_run:
-        check_plan(seq.expand(), cfg)  # the limits the rig would check before anything moves
+        check_plan(seq.expand(), cfg, spec.sample_rate_hz)  # the limits the rig checks before anything moves
         out.print(f"within the limits of rig {cfg.name}")
         return
     out_dir = out_dir or _default_out(proc.NAME, truth.serial)

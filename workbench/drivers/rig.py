@@ -122,8 +122,8 @@ class RealRig:
     # -- interface shared with the simulated rig ------------------------------------------
     def check(self, plan: list[PlannedStep]) -> None:
         """RigLimitError if a step is outside the limits, needs a chamber that is not configured,
-        or needs a remount on a ``fixed`` fixture."""
-        check_plan(plan, self.config)
+        or needs a remount on a ``fixed`` fixture, or a step's record would not fit in memory."""
+        check_plan(plan, self.config, self.fs)
         self._check_position_moves(plan)
         for i, p in enumerate(plan):
             where = f"rig {self.name}: step {i} ({p.kind}{', ' + p.label if p.label else ''})"

@@ -63,8 +63,8 @@ class SimRig:
 
     # -- interface shared with real rigs ---------------------------------------------
     def check(self, plan: list[PlannedStep]) -> None:
-        """Raise RigLimitError if any planned step is outside the rig's limits."""
-        check_plan(plan, self.config)
+        """Raise RigLimitError if any planned step is outside the rig's limits (or the memory for its record)."""
+        check_plan(plan, self.config, self.fs)
 
     def identify(self) -> dict:
         """Identity and state, without moving anything."""
