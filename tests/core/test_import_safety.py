@@ -149,3 +149,16 @@ def test_a_failed_import_leaves_no_folder(tmp_path, capsys):
     finally:
         importer.write_session = original
     _nothing_left(tmp_path, "s2")
+
+
+def test_an_unreadable_or_non_finite_recording_is_named_once_and_plainly(tmp_path, capsys):
+    """The file's path once (was 'rec.csv: rec.csv: ...'), the bad cell as the file holds it (was np.float64(inf))."""
+    profile, data = _recording(tmp_path / "d")
+    data.write_bytes(data.read_bytes().replace(b"0,0.0,0.0,0.0,0.0,0.0,-1.0\n", b"0,inf,0.0,0.0,0.0,0.0,-1.0\n", 1))
+    assert main(["import", str(profile), str(data), "--out", str(tmp_path / "s")]) == 2
+    assert "column 'gx': not a finite number at row 0 (inf)" in capsys.readouterr().err
+    data.write_bytes(b"n,gx\xff\n")
+    assert main(["import", str(profile), str(data), "--out", str(tmp_path / "s")]) == 2
+    err = capsys.readouterr().err
+    assert err.count(str(data)) == 1 and "not a readable csv recording (UnicodeDecodeError" in err
+    _nothing_left(tmp_path, "s")

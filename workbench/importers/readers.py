@@ -114,8 +114,9 @@ def _read_dataflash(path: Path, message: str, instance: int, where: str) -> pd.D
 def read_log(path: Path, reader: Mapping, where: str) -> pd.DataFrame:
     """The table of ``path`` as ``reader`` says (module docstring); WorkbenchError naming ``where``."""
     kind = reader.get("type") or ("parquet" if path.suffix == ".parquet" else "csv")
+    place = where if where == str(path) else f"{where}: {path}"  # a single file is its own place
     if not path.exists():
-        raise WorkbenchError(f"{where}: {path}: no such file")
+        raise WorkbenchError(f"{place}: no such file")
     try:
         if kind == "parquet":
             return pd.read_parquet(path)
@@ -130,5 +131,5 @@ def read_log(path: Path, reader: Mapping, where: str) -> pd.DataFrame:
     except WorkbenchError:
         raise
     except Exception as exc:  # each library raises its own types for files that are not its format
-        raise WorkbenchError(f"{where}: {path}: not a readable {kind} recording "
+        raise WorkbenchError(f"{place}: not a readable {kind} recording "
                              f"({type(exc).__name__}: {str(exc)[:120]})") from None

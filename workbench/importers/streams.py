@@ -80,7 +80,9 @@ def _column(raw: pd.DataFrame, col, where: str) -> np.ndarray:
     bad = ~np.isfinite(values)
     if bad.any():
         row = int(np.argmax(bad))
-        raise ImportProfileError(f"{where}: column {col!r}: not a finite number at row {row} ({raw[col].iloc[row]!r})")
+        cell = raw[col].iloc[row]
+        raise ImportProfileError(f"{where}: column {col!r}: not a finite number at row {row} "
+                                 f"({cell.item() if hasattr(cell, 'item') else cell!r})")
     return values
 
 
