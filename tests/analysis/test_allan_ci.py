@@ -12,7 +12,7 @@ from scipy.signal import fftconvolve
 
 from workbench.analysis.allan import deviation, phase
 from workbench.analysis.allan_ci import (alpha_from_slope, confidence, detrend_quadratic, edf_greenhall,
-                                         edf_greenhall_many, identify)
+                                         edf_greenhall_many, identify, round_alpha)
 from workbench.sim.powerlaw import kasdin_response
 
 
@@ -101,6 +101,14 @@ def test_quadratic_detrend_equals_polyfit_residual(n):
         t = np.arange(n, dtype=float)
         ref = z - np.polyval(np.polyfit(t, z, 2), t) if n >= 3 else np.zeros(n)  # n < 3: any quadratic fits
         assert np.max(np.abs(detrend_quadratic(z) - ref), initial=0.0) <= 1e-12 * max(np.ptp(z), 1.0)
+
+
+def test_round_alpha_is_numpys_round_and_clip():
+    # halves round to even as np.round does (-0.5, 0.5 -> 0; 1.5 -> 2), NaN stays NaN
+    values = np.concatenate([np.random.default_rng(3).uniform(-6.0, 4.0, 2000), np.arange(-6.0, 4.5, 0.5)])
+    for lo, hi in ((-2, 2), (-4, 2)):
+        assert [round_alpha(float(v), lo, hi) for v in values] == [float(np.clip(np.round(v), lo, hi)) for v in values]
+    assert np.isnan(round_alpha(float("nan"), -2, 2))
 
 
 def _flicker_edf_decimal(d: int, m: int, n: int) -> float:

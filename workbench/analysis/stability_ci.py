@@ -45,7 +45,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from workbench.analysis.allan_ci import MAX_POINTS_ID, chi2_ppf, edf_greenhall_many, noise_id_spread, pick_wider
+from workbench.analysis.allan_ci import (MAX_POINTS_ID, chi2_ppf, edf_greenhall_many, noise_id_spread, pick_wider,
+                                        round_alpha)
 from workbench.analysis.stability import Stability, stability
 from workbench.errors import AnalysisError
 
@@ -193,12 +194,12 @@ def _identify(x: np.ndarray, m: np.ndarray, dmax: int) -> tuple[np.ndarray, np.n
         z = xs[::mk][:MAX_POINTS_ID]
         if len(z) >= MIN_POINTS_LAG1:
             a, se = noise_id_spread(z, dmax)
-            out[k] = float(np.clip(np.round(a), lo_a, 2))
+            out[k] = round_alpha(a, lo_a, 2)
             if out[k] == 2 and mk > 1:
                 blocks = min(len(xs) // mk, MAX_POINTS_ID)
                 if noise_id_spread(xs[:blocks * mk].reshape(blocks, mk).mean(axis=1), dmax)[0] < FLICKER_AVERAGED:
                     out[k] = a = 1.0
-            ends = [float(np.clip(np.round(a + s * AMBIGUOUS_SE * se), lo_a, 2)) for s in (-1.0, 1.0)]
+            ends = [round_alpha(a + s * AMBIGUOUS_SE * se, lo_a, 2) for s in (-1.0, 1.0)]
             # only white vs flicker PM, where the lag-1 method is weakest (the other pairs stay as
             # identified: their types agree with Stable32's and their coverage is within 95 +- 2 %)
             other[k] = next((e for e in ends if e != out[k] and {e, out[k]} <= {1.0, 2.0}), out[k])
