@@ -23,6 +23,8 @@ budget_app = typer.Typer(no_args_is_help=True, help="Error budgets: is this unit
 FIG4_BASELINES_M = (0.5, 1.0, 1.5, 2.0, 3.0)
 FIG4_ERRORS_MM = ((2.5, 5.0), (5.0, 10.0))  # (horizontal, vertical) per NED baseline component, paper 003 sec. 3.2
 FIG4_ATTITUDE_DEG = (1.0, 5.0, 45.0)  # roll, pitch, heading of Fig. 4
+DURATION_RANGE_S = (10.0, 86400.0)  # a flight of the facility: seconds to a day (the 100 Hz covariance
+# propagation takes about 1 s of CPU per 300 s of flight; 1e12 s ran for ever)
 
 
 def _fmt3(values, unit: str, digits: int) -> str:
@@ -60,8 +62,14 @@ def reference_facility(
     names = list(rf.SCENARIOS) if scenario == "both" else [scenario]
     if any(n not in rf.SCENARIOS for n in names):
         raise AnalysisError(f"--scenario {scenario}: unknown (known: {', '.join(rf.SCENARIOS)}, both)")
-    if not duration_s >= 10.0:
-        raise AnalysisError(f"--duration-s {duration_s:g}: at least 10 s")
+    lo, hi = DURATION_RANGE_S
+    if not lo <= duration_s <= hi:
+        raise AnalysisError(f"--duration-s {duration_s:g}: expected {lo:g} to {hi:g} s")
+    for option, value in (("--ppr-cm", ppr_cm), ("--tilt-deg", tilt_deg), ("--yaw-deg", yaw_deg), ("--pdop", pdop),
+                          ("--vdop", vdop), ("--position-req-cm", position_req_cm),
+                          ("--attitude-req-deg", attitude_req_deg)):
+        if not 0.0 < value < float("inf"):  # a sigma, a dilution or a requirement: NaN, 0 and negatives mean nothing
+            raise AnalysisError(f"{option} {value:g}: expected a positive finite number")
     if set_ref is not None:
         from workbench.cli.sets import load_set_ref
 
