@@ -59,7 +59,7 @@ def _frame(session: Session, step: StepRecord, settle_s: float) -> pd.DataFrame:
         raise AnalysisError(f"{session.name}: {step_name(step)} has no samples")
     t = df["t"].to_numpy(float)
     settle = min(settle_s, 0.2 * (t[-1] - t[0]))
-    return df[t >= t[0] + settle]
+    return df.iloc[int(np.searchsorted(t, t[0] + settle)):]  # t increases: the rows from t[0] + settle on
 
 
 def step_stats(session: Session, step: StepRecord, settle_s: float = 0.0) -> StepStats:
