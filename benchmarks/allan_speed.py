@@ -285,22 +285,29 @@ from pathlib import Path
 import numpy as np; lap("numpy")
 from workbench.cli import main; lap("typer, rich, workbench.cli")
 from workbench.cli.allan_record import load_record, quantity_of
-from workbench.analysis import allan
-from workbench.analysis.allan_ci import confidence
-from workbench.analysis.allan_fit import AllanAnalysis, fit_terms
+from workbench.analysis import allan, allan_ci, allan_fit
 from workbench.cli.allan_csv import CURVE_COLUMNS, curve_rows, write_csv
 from workbench.cli.allan_tables import print_terms
 lap("the command's modules")
 import pyarrow.parquet as pq; pq.ParquetFile(sys.argv[1]).metadata.num_rows; lap("pyarrow, size check")
 y, fs, cols, label = load_record(Path(sys.argv[1]), None, 100.0); lap("Parquet read")
-segments, warnings = allan.prepare_rate_data(y, tuple(cols), label, "error", quantity_of(cols)); lap("input checks")
 if y.size > allan.COMPILED_WORK / 20:
     from workbench.analysis import allan_kernels
     allan_kernels.column_sums(np.zeros((2, 3))); lap("numba, first cached kernel")
-curve, x = allan.segment_deviation(segments, fs, "oadev", "octave", tuple(cols), label, True); lap("phase, OADEV sums")
-ci = confidence(curve, x); lap("intervals")
-terms = fit_terms(ci); lap("IEEE 952 fit")
-an = AllanAnalysis(ci, terms, quantity_of(cols), tuple(warnings))
+inner = {}
+def timed(module, name, step):  # the calls of analyze_record, timed where it makes them
+    orig = getattr(module, name)
+    def call(*a, **k):
+        c = time.process_time(); r = orig(*a, **k); inner[step] = inner.get(step, 0.0) + time.process_time() - c
+        return r
+    setattr(module, name, call)
+for module, name, step in ((allan, "segment_deviation", "phase, OADEV sums"), (allan_ci, "confidence", "intervals"),
+                           (allan_fit, "fit_terms", "IEEE 952 fit")):
+    timed(module, name, step)
+an = allan_fit.analyze_record(y, fs, cols, quantity_of(cols), "octave", "error", label, overwrite=True)
+c = time.process_time()
+laps += list(inner.items())
+laps.append(("checks, rate mean square", c - t[0] - sum(inner.values()))); t[0] = c
 print_terms(an); write_csv(Path(sys.argv[2]), CURVE_COLUMNS, curve_rows(an)); lap("table, CSV")
 sys.stdout.flush()
 print("STEPS " + json.dumps(laps))
@@ -308,8 +315,8 @@ print("STEPS " + json.dumps(laps))
 
 
 def _steps(path: Path, out_csv: Path, repeat: int) -> list[tuple[str, list[float]]]:
-    """CPU (s) of each step of the octave command (:data:`_STEPS`: the command's calls, timed in one
-    fresh process), ``repeat`` processes; (step, CPU per run)."""
+    """CPU (s) of each step of the octave command (:data:`_STEPS`: the command's calls, those inside
+    ``analyze_record`` timed where it makes them, in one fresh process), ``repeat`` processes; (step, CPU per run)."""
     runs = []
     for _ in range(repeat):
         res = subprocess.run([sys.executable, "-c", _STEPS, str(path), str(out_csv)], capture_output=True, text=True,
