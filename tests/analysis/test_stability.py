@@ -251,3 +251,18 @@ def test_every_statistic_runs_with_intervals_on_a_short_record():
         assert len(s.tau) >= 1 and np.all(np.isfinite(s.dev)), stat
         if stat not in ("mtie", "tierms"):
             assert np.all((ci.lo <= s.dev) & (s.dev <= ci.hi)), stat
+
+
+@pytest.mark.parametrize("stat", STATS)
+@pytest.mark.parametrize("data_type", ["freq", "phase"])
+def test_a_record_too_short_for_any_term_is_an_analysis_error(stat, data_type):
+    """0-3 points: ZeroDivisionError (TOTDEV), ValueError (MTIE) or RuntimeWarnings and NaN (HTOTDEV) before."""
+    import warnings
+
+    for n in range(4):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            try:
+                stability(np.random.default_rng(n).normal(size=n), 1.0, stat, data_type, "octave")
+            except AnalysisError as exc:
+                assert stat in str(exc)

@@ -153,3 +153,33 @@ def test_command_line_options(world, argv):
     assert_refused_cleanly(world, argv, [world.session])
 
 
+
+
+# a cell of a record handed to `workbench allan`: ordinary noise, degenerate and hostile values
+CELL = st.one_of(st.floats(-1e-2, 1e-2), NON_FINITE, st.sampled_from([1e308, -1e308, 1e150, 0.0, "", "abc", "1,5"]))
+
+
+@settings(max_examples=12)
+@given(rows=st.integers(0, 400), time=st.sampled_from(["none", "regular", "duplicated", "backwards"]),
+       columns=st.integers(0, 3), delimiter=st.sampled_from([",", ";"]), cell=CELL, at=st.integers(0, 10**6),
+       rate=st.sampled_from([None, "100", "0", "-1", "nan", "inf", "1e-300"]),
+       stat=st.sampled_from([[], ["--stat", "oadev"], ["--stat", "mtie", "--data-type", "phase"]]))
+def test_allan_records(world, rows, time, columns, delimiter, cell, at, rate, stat):
+    """The record loader of `workbench allan`: any CSV it may meet gives a result or one line, exit 2."""
+    import numpy as np
+
+    rng = np.random.default_rng(rows)
+    t = np.arange(rows) / 100.0
+    if time == "duplicated" and rows > 2:
+        t[rows // 2] = t[rows // 2 - 1]
+    if time == "backwards" and rows > 2:
+        t[rows // 2:] -= 1.0
+    names = (["t"] if time != "none" else []) + [f"g{c}" for c in "xyz"[:columns]]
+    cells = [[f"{v:.6g}" for v in ([t[i]] if time != "none" else []) + list(rng.normal(0, 1e-3, columns))]
+             for i in range(rows)]
+    if rows and columns:
+        cells[at % rows][-1] = str(cell)
+    d = world.fresh("allan")
+    f = d / "rec.csv"
+    f.write_text(delimiter.join(names) + "\n" + "".join(delimiter.join(r) + "\n" for r in cells))
+    assert_refused_cleanly(world, ["allan", f, *(["--rate", rate] if rate else []), *stat], [d])

@@ -40,6 +40,7 @@ from workbench.errors import AnalysisError
 STATS = ("adev", "oadev", "mdev", "tdev", "hdev", "ohdev", "totdev", "mtotdev", "ttotdev", "htotdev",
          "theo1", "theoh", "mtie", "tierms")
 GAP_FREE = ("totdev", "mtotdev", "ttotdev", "htotdev", "theo1", "theoh", "mtie")
+MIN_PHASE_POINTS = {"htotdev": 4}  # phase points below which a statistic has no term (default 3)
 # largest m as a fraction of the phase points: a statistic needs at least one full difference
 _SPAN = {"adev": 2, "oadev": 2, "mdev": 3, "tdev": 3, "hdev": 3, "ohdev": 3, "totdev": 1, "mtotdev": 3,
          "ttotdev": 3, "htotdev": 3, "theo1": 1, "theoh": 1, "mtie": 1, "tierms": 1}
@@ -125,6 +126,10 @@ def stability(data: np.ndarray, rate: float = 1.0, stat: str = "oadev", data_typ
     if not (np.isfinite(rate) and rate > 0):
         raise AnalysisError(f"sample rate {rate!r} Hz must be positive")
     x = to_phase(data, float(rate), data_type)
+    fewest = MIN_PHASE_POINTS.get(stat, 3)  # one second difference (HTOTDEV: one third difference)
+    if len(x) < fewest:
+        raise AnalysisError(f"{stat}: {len(np.asarray(data).ravel())} {data_type} point(s): too few "
+                            f"(at least {fewest - (data_type == 'freq')})")
     gaps = ~np.isfinite(np.asarray(data, float).ravel())
     if gaps.any() and stat in GAP_FREE:
         raise AnalysisError(f"{stat}: {int(gaps.sum())} missing sample(s): {stat} needs a gap-free record "
