@@ -12,6 +12,8 @@ import os
 import tempfile
 from pathlib import Path
 
+from workbench.errors import WorkbenchError
+
 
 def umask() -> int:
     """The process umask (e.g. 0o022), read from /proc where it exists so it is never changed."""
@@ -28,9 +30,18 @@ def umask() -> int:
 
 def atomic_write_text(path: Path, text: str) -> Path:
     """Write ``text`` to ``path`` through a temp file in the same folder and an atomic rename
-    (permissions as the user's umask gives a new file)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    (permissions as the user's umask gives a new file). A path that cannot be written (a folder,
+    a file where a folder should be, no permission) is a WorkbenchError naming it."""
+    try:
+        for folder in (path.parent, *path.parent.parents):
+            if folder.exists() and not folder.is_dir():
+                raise NotADirectoryError(20, f"{folder} is a file, not a folder")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if path.is_dir():
+            raise IsADirectoryError(21, "is a folder")
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    except OSError as exc:
+        raise WorkbenchError(f"{path}: cannot write ({exc.strerror or exc})") from None
     try:
         os.fchmod(fd, 0o666 & ~umask())  # mkstemp creates 0600; the file gets the user's usual permissions
         with os.fdopen(fd, "w") as fh:
@@ -38,8 +49,10 @@ def atomic_write_text(path: Path, text: str) -> Path:
             fh.flush()
             os.fsync(fh.fileno())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         Path(tmp).unlink(missing_ok=True)
+        if isinstance(exc, OSError):  # disk full, quota
+            raise WorkbenchError(f"{path}: cannot write ({exc.strerror or exc})") from None
         raise
     return path
 

@@ -153,3 +153,20 @@ def test_a_step_too_long_for_memory_is_refused_before_anything_is_written(db, tm
     err = capsys.readouterr().err
     assert "Traceback" not in err and "1e+17 samples" in err.strip().splitlines()[-1]
     assert not out.exists()
+
+
+def test_an_out_path_that_cannot_be_written_is_one_line(db, tmp_path, capsys):
+    """run --out an existing file, sets export --out a folder, allan --plot where no file can be made."""
+    a_file = tmp_path / "a_file"
+    a_file.write_text("x")
+    assert main(["run", "multiposition", "-o", "dwell_s=2", "--no-store", "--out", str(a_file)]) == 2
+    assert "a_file is a file; --out names a folder" in _one_line(capsys)
+    from tests.core.test_store import a_set
+
+    s = a_set().save(tmp_path / "s.json")
+    assert main(["sets", "export", str(s), "--out", str(tmp_path)]) == 2
+    assert f"{tmp_path}: cannot write (is a folder)" in _one_line(capsys)
+    rec = tmp_path / "r.txt"
+    rec.write_text("".join(f"{(-1) ** k * 0.001 * (k % 7)}\n" for k in range(1000)))
+    assert main(["allan", str(rec), "--rate", "10", "--plot", str(a_file / "x.png")]) == 2
+    assert f"--plot {a_file / 'x.png'}: cannot write" in capsys.readouterr().err.strip().splitlines()[-1]

@@ -42,3 +42,16 @@ def test_sha256_of_a_file_larger_than_one_chunk(tmp_path):
     path = tmp_path / "blob"
     path.write_bytes(data)
     assert file_sha256(path) == hashlib.sha256(data).hexdigest()
+
+
+def test_a_path_that_cannot_be_written_is_one_workbench_error(tmp_path):
+    """--out naming a folder, or a file under a file, was an IsADirectoryError / NotADirectoryError traceback."""
+    from workbench.errors import WorkbenchError
+
+    (tmp_path / "f").write_text("x")
+    with pytest.raises(WorkbenchError, match=r"d: cannot write \(is a folder\)"):
+        (tmp_path / "d").mkdir()
+        atomic_write_text(tmp_path / "d", "text")
+    with pytest.raises(WorkbenchError, match=r"f/x.json: cannot write \(.*f is a file, not a folder\)"):
+        atomic_write_text(tmp_path / "f" / "x.json", "text")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["d", "f"]

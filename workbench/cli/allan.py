@@ -98,9 +98,13 @@ def register(app: typer.Typer) -> None:
             from workbench.plots.allan import plot_triads
 
             fig = plot_triads({an.quantity or "data": an})
-            plot.parent.mkdir(parents=True, exist_ok=True)
-            fig.savefig(plot, dpi=110, bbox_inches="tight")
-            plt.close(fig)
+            try:
+                plot.parent.mkdir(parents=True, exist_ok=True)
+                fig.savefig(plot, dpi=110, bbox_inches="tight")
+            except OSError as exc:
+                raise AnalysisError(f"--plot {plot}: cannot write ({exc.strerror or exc})") from None
+            finally:
+                plt.close(fig)
             out.print(f"figure: {plot}")
 
 

@@ -128,6 +128,13 @@ def _default_out(name: str, serial: str) -> Path:
     return Path("runs") / f"{name}-{safe_component(serial, 'serial')}-{datetime.now(UTC).strftime('%Y%m%dT%H%M%S')}"
 
 
+def _out_folder(value: Path | None) -> Path | None:
+    """``--out`` of a run: a folder to create or fill, never an existing file."""
+    if value is not None and value.exists() and not value.is_dir():
+        raise typer.BadParameter(f"{value} is a file; --out names a folder")
+    return value
+
+
 def _safe_serial(value: str | None) -> str | None:
     from workbench.confine import safe_component
 
@@ -142,7 +149,8 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
         serial: str = typer.Option(None, "--serial", callback=_safe_serial,
                                    help="Serial of the unit under test (on a real rig; default: the simulated "
                                         "unit's, <grade>-<seed>); letters, digits and . _ + -."),
-        out_dir: Path = typer.Option(None, "--out", help="Output folder (default runs/<procedure>-<serial>-<time>)."),
+        out_dir: Path = typer.Option(None, "--out", callback=_out_folder,
+                                     help="Output folder (default runs/<procedure>-<serial>-<time>)."),
         resume: Path = typer.Option(None, "--resume", help="Continue an interrupted session folder."),
         option: list[str] = typer.Option(None, "--option", "-o", help="Option key=value of the sequence or the analysis (repeatable; "
                                    "'workbench procedures PROC' lists them; a campaign takes PROC.key=value)."),
