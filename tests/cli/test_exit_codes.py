@@ -170,3 +170,9 @@ def test_an_out_path_that_cannot_be_written_is_one_line(db, tmp_path, capsys):
     rec.write_text("".join(f"{(-1) ** k * 0.001 * (k % 7)}\n" for k in range(1000)))
     assert main(["allan", str(rec), "--rate", "10", "--plot", str(a_file / "x.png")]) == 2
     assert f"--plot {a_file / 'x.png'}: cannot write" in capsys.readouterr().err.strip().splitlines()[-1]
+
+
+def test_an_empty_set_reference_says_so(db, capsys):
+    """Was '.: cannot read (Is a directory)': an empty argument read as the current folder."""
+    assert main(["sets", "show", ""]) == 2
+    assert "empty set reference: give a set id (or prefix) or a calibration file" in _one_line(capsys)

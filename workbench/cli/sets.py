@@ -22,8 +22,11 @@ sets_app = typer.Typer(no_args_is_help=True, help="Calibration sets: list, show,
 def load_set_ref(ref: str) -> CalibrationSet:
     """A set from a calibration JSON file path or a stored set's id (or unique id prefix)."""
     from workbench.calset import CalibrationSet
+    from workbench.errors import CalibrationFormatError
     from workbench.store import Store
 
+    if not ref.strip():  # Path("") is the current folder
+        raise CalibrationFormatError("empty set reference: give a set id (or prefix) or a calibration file")
     p = Path(ref)
     if p.suffix in (".json", ".yaml", ".yml") or p.exists():
         return CalibrationSet.load(p)
