@@ -5,6 +5,7 @@
 - :func:`lab` / :func:`lab_array` — an SI value (± sigma) in a lab unit, through ``workbench.units``;
 - :func:`lab_label` — a snake-case name with a unit suffix for people (``dwell_s`` -> ``dwell (s)``);
 - :func:`plain_field` — a labelled value typed by a user (a serial), shown whole and never as markup;
+- :func:`md_escape` — user text (a path, a model, an error naming them) made literal inside Markdown;
 - :func:`format_duration`, :func:`page_link`.
 """
 
@@ -14,6 +15,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
+
+import re
 
 import numpy as np
 import streamlit as st
@@ -42,14 +45,24 @@ def in_store(set_id: str) -> bool:
     return True
 
 
+MARKUP = re.compile(r"([\\`*\[\]<>$~])")  # what starts emphasis, code, a link, HTML, LaTeX, a colour directive
+
+
+def md_escape(text: str) -> str:
+    """``text`` with every character that starts Markdown markup backslash-escaped, so ``st.error``,
+    ``st.caption`` and their kind show it as typed (a file ``[x](http://...)**b**`` is no link, no bold)."""
+    return MARKUP.sub(r"\\\1", str(text))
+
+
 def show_error(exc: BaseException, context: str = "") -> None:
-    """Show ``exc`` as a one-line ``st.error`` (a WorkbenchError's message names the place at fault)."""
+    """Show ``exc`` as a one-line ``st.error`` (a WorkbenchError's message names the place at fault;
+    it holds user text, shown literally)."""
     kind = type(exc).__name__
-    prefix = f"{context}: " if context else ""
+    prefix = f"{md_escape(context)}: " if context else ""
     if isinstance(exc, WorkbenchError):
-        st.error(f"{prefix}{exc}  \n({kind})", icon="⚠️")
+        st.error(f"{prefix}{md_escape(str(exc))}  \n({kind})", icon="⚠️")
     else:  # a bug in a procedure: say so, but keep the page usable
-        st.error(f"{prefix}unexpected {kind}: {str(exc)[:300]}", icon="🐞")
+        st.error(f"{prefix}unexpected {kind}: {md_escape(str(exc)[:300])}", icon="🐞")
 
 
 @contextmanager

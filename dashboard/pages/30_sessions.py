@@ -196,8 +196,9 @@ with tab_browse:
     c3.metric("Samples", f"{len(session.samples):,}")
     c4.metric("Duration", ui.format_duration(float(session.samples["t"].iloc[-1] - session.samples["t"].iloc[0])
                                                  if len(session.samples) else 0.0))
-    st.caption(f"{folder} · {session.sample_rate_hz:g} Hz · site latitude {session.site.latitude_deg:.4f}° · "
-               f"rig {session.rig or '—'} · model {session.unit.model or '—'}")
+    st.caption(f"{ui.md_escape(folder)} · {session.sample_rate_hz:g} Hz · site latitude "
+               f"{session.site.latitude_deg:.4f}° · rig {ui.md_escape(session.rig or '—')} · "
+               f"model {ui.md_escape(session.unit.model or '—')}")
 
     steps = pd.DataFrame([{"index": s.index, "kind": s.kind, "label": s.label, "t_start_s": s.t_start,
                            "duration_s": round(s.duration, 3),

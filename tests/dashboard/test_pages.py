@@ -369,6 +369,25 @@ def test_sessions_bad_folder_is_readable(seeded_db, tmp_path):
     assert any("no session.json" in e for e in texts(at, "error"))
 
 
+def test_user_text_in_an_error_is_shown_as_typed_never_as_markdown(seeded_db, tmp_path):
+    """A folder named with a link, bold and HTML: the error names it literally (st.error renders Markdown)."""
+    typed = tmp_path / "[x](x.invalid)**b** <b>c :red[y]"
+    typed.mkdir()
+    at = page("30_sessions.py")
+    at.selectbox(key="sess.pick").select("(type a folder)").run()
+    at.text_input(key="sess.pick.typed").input(str(typed)).run()
+    assert not at.exception
+    (error,) = [e for e in texts(at, "error") if "no session.json" in e]
+    assert "\\[x\\](x.invalid)\\*\\*b\\*\\* \\<b\\>c :red\\[y\\]" in error
+
+
+def test_md_escape_leaves_plain_text_alone():
+    from dashboard import ui
+
+    assert ui.md_escape("sample_rate_hz: 100 Hz (session.json, ±2 °/h)") == "sample_rate_hz: 100 Hz (session.json, ±2 °/h)"
+    assert ui.md_escape("a*b`c$d~e\\f") == "a\\*b\\`c\\$d\\~e\\\\f"
+
+
 def test_sessions_import_through_profile(seeded_db, tmp_path):
     at = _import(page("30_sessions.py"), ("rec.csv", _recording_csv(), "text/csv"))
     assert not at.exception and not at.error, texts(at, "error")
