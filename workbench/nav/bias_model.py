@@ -7,7 +7,7 @@ after the pre-calibration, docs/navigation.md). The standard finite-state stand-
 Gauss-Markov (exponentially correlated) process of steady-state sigma ``σ`` and correlation time
 ``T``, ``ḃ = -b / T + w``, ``E[w²] = 2 σ² / T``, whose Allan variance (IEEE Std 952-1997 annex C,
 "exponentially correlated (Markov) noise"; El-Sheimy, Hou, Niu, IEEE Trans. Instrum. Meas. 57(1),
-2008, eq. 17) is
+2008, sec. on exponentially correlated noise) is
 
     AVAR(τ) = (2 σ² / x) [1 - (3 - 4 e^(-x) + e^(-2x)) / (2 x)],   x = τ / T,
 
