@@ -66,6 +66,9 @@ def validate_samples(df: pd.DataFrame, steps: Sequence[StepRecord], sample_rate_
         raise SessionError(f"{source}: no samples")
     for col in [c for c in REQUIRED_COLUMNS + OPTIONAL_COLUMNS if c in df.columns]:
         try:
+            kind = df[col].dtype  # numbers only: text digits, True / False, categories are no measurement
+            if not pd.api.types.is_numeric_dtype(kind) or pd.api.types.is_bool_dtype(kind):
+                raise TypeError
             values = df[col].to_numpy(float)
         except (TypeError, ValueError):
             raise SessionError(f"{source}: column {col}: not numeric ({df[col].dtype} values)") from None
@@ -78,7 +81,11 @@ def validate_samples(df: pd.DataFrame, steps: Sequence[StepRecord], sample_rate_
     if np.any(dt <= 0):
         row = int(np.argmax(dt <= 0)) + 1
         raise SessionError(f"{source}: column t: duplicate or non-increasing time at row {row} (t={t[row]})")
-    labels = df["step"].to_numpy()
+    labels = df["step"].to_numpy(float)
+    if np.any(labels != np.round(labels)):
+        row = int(np.argmax(labels != np.round(labels)))
+        raise SessionError(f"{source}: column step: {labels[row]:g} at row {row} is not a whole step index")
+    labels = labels.astype(np.int64)
     _check_time_base(t, labels, sample_rate_hz, source, gaps_in_steps)
     nominal = 1.0 / sample_rate_hz
     _check_units(df, source)

@@ -57,6 +57,12 @@ def _set(df, col, row, value):
     (lambda df: df.assign(ax=df.ax / 9.80665, ay=df.ay / 9.80665, az=df.az / 9.80665), "not m/s\\^2"),
     (lambda df: df.assign(gx=np.degrees(df.gx) + 100.0), "not rad/s"),
     (lambda df: _set(df, "step", 10, 7), "label.*7.* match no step"),
+    # a Parquet file with the wrong column types: text steps were a TypeError traceback in the step index,
+    # a boolean gyro was analysed, a fractional step label matched no step silently
+    (lambda df: df.assign(step=df.step.astype(str)), "column step: not numeric \\(str values\\)"),
+    (lambda df: df.assign(gx=df.gx > 0), "column gx: not numeric \\(bool values\\)"),
+    (lambda df: df.assign(t=df.t.astype(str)), "column t: not numeric"),
+    (lambda df: _set(df.assign(step=df.step.astype(float)), "step", 10, 0.5), "column step: 0.5 at row 10 is not a whole"),
 ])
 def test_bad_samples_get_errors_naming_the_column(recorded, tmp_path, edit, match):
     with pytest.raises(SessionError, match=match) as exc:
