@@ -81,10 +81,16 @@ _ANALYSIS_KEYS = ("t_ref_c", "max_order", "order", "hysteresis", "order_per_axis
                   "ramp_window_s")
 
 
+MAX_SETPOINTS = 1000  # soaks of one sweep: -40..85 °C every 0.125 °C; step_c=1e-9 asked numpy for 447 GiB
+
+
 def setpoints(t_min_c: float, t_max_c: float, step_c: float, return_sweep: bool) -> list[float]:
     """Soak setpoints (°C): ``t_min_c`` up by ``step_c`` to ``t_max_c`` (included), then back down."""
     if not (step_c > 0 and t_max_c > t_min_c):
         raise RigLimitError(f"{NAME}: need t_max_c > t_min_c and step_c > 0 (got {t_min_c}, {t_max_c}, {step_c})")
+    if not (t_max_c - t_min_c) / step_c < MAX_SETPOINTS:
+        raise RigLimitError(f"{NAME}: step_c={step_c:g} °C makes {(t_max_c - t_min_c) / step_c:.3g} soaks from "
+                            f"{t_min_c:g} to {t_max_c:g} °C; at most {MAX_SETPOINTS}")
     up = list(np.arange(t_min_c, t_max_c + 1e-9, step_c))
     if t_max_c - up[-1] > 1e-9:
         up.append(t_max_c)

@@ -176,3 +176,9 @@ def test_an_empty_set_reference_says_so(db, capsys):
     """Was '.: cannot read (Is a directory)': an empty argument read as the current folder."""
     assert main(["sets", "show", ""]) == 2
     assert "empty set reference: give a set id (or prefix) or a calibration file" in _one_line(capsys)
+
+
+def test_a_thermal_sweep_of_absurdly_many_soaks_is_one_line(db, capsys):
+    """step_c=1e-9 °C over -10..50 °C: 6e10 setpoints, a 447 GiB MemoryError traceback before."""
+    assert main(["run", "thermal", "--dry-run", "-o", "step_c=1e-9"]) == 2
+    assert "thermal: step_c=1e-09 °C makes 6e+10 soaks from -10 to 50 °C; at most 1000" in _one_line(capsys)
