@@ -57,7 +57,7 @@ OPTIONS = (
     Option("settle_window_s", "both", "float", 120.0, "over this window", unit="s", gt=0),
     Option("t_ref_c", "analysis", "float", 25.0, "reference temperature of the model", unit="°C"),
     Option("max_order", "analysis", "int", 5, "highest polynomial order tried", ge=0),
-    Option("order", "analysis", "any", None, "polynomial order (default: cross-validated)"),
+    Option("order", "analysis", "int", None, "polynomial order (default: cross-validated)", ge=0),
     Option("hysteresis", "analysis", "str", "auto", "direction term", choices=("auto", "on", "off")),
     Option("order_per_axis", "analysis", "bool", True, "each axis its own cross-validated order (else one "
            "order for the triad)"),

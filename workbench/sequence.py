@@ -43,7 +43,10 @@ def mount_matrix(mount: Mount) -> np.ndarray:
         if mount not in _NAMED_MOUNTS:
             raise RigLimitError(f"unknown mount {mount!r} (expected one of {', '.join(MOUNT_NAMES)} or a 3x3 matrix)")
         return _NAMED_MOUNTS[mount].as_matrix()
-    m = np.asarray(mount, float)
+    try:
+        m = np.asarray(mount, float)
+    except (TypeError, ValueError):  # a ragged list, text inside, a mapping
+        raise RigLimitError("mount: not a 3x3 rotation matrix") from None
     if m.shape != (3, 3) or not np.allclose(m @ m.T, np.eye(3), atol=1e-6) or np.linalg.det(m) < 0:
         raise RigLimitError("mount: not a 3x3 rotation matrix")
     return m

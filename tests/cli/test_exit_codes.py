@@ -182,3 +182,22 @@ def test_a_thermal_sweep_of_absurdly_many_soaks_is_one_line(db, capsys):
     """step_c=1e-9 °C over -10..50 °C: 6e10 setpoints, a 447 GiB MemoryError traceback before."""
     assert main(["run", "thermal", "--dry-run", "-o", "step_c=1e-9"]) == 2
     assert "thermal: step_c=1e-09 °C makes 6e+10 soaks from -10 to 50 °C; at most 1000" in _one_line(capsys)
+
+
+@pytest.mark.parametrize("args,match", [
+    (["run", "thermal", "--dry-run", "-o", "order=abc"], "thermal: order='abc' is not a whole number"),
+    (["run", "thermal", "--dry-run", "-o", "order=-1"], "thermal: order=-1 must be >= 0"),  # both were tracebacks
+    (["run", "allan", "--dry-run", "-o", "mount=[[1,2],[3]]"], "mount: not a 3x3 rotation matrix"),  # ragged list
+])
+def test_an_option_value_of_the_wrong_shape_is_one_line(db, capsys, args, match):
+    assert main(args) == 2
+    assert match in _one_line(capsys)
+
+
+def test_allan_taus_holding_text_is_one_line(db, tmp_path, capsys):
+    """-o taus='[1, "a"]' reached np.asarray(taus, float): a ValueError traceback."""
+    from workbench.analysis.allan import averaging_factors
+    from workbench.errors import AnalysisError
+
+    with pytest.raises(AnalysisError, match="taus \\[1, 'a'\\]: expected octave, decade, <k>-per-decade or a list"):
+        averaging_factors(1000, [1, "a"], 100.0)

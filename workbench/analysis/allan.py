@@ -88,7 +88,10 @@ def averaging_factors(n_phase: int, taus: str | np.ndarray, rate: float, kind: s
             top = np.log10(n_phase)
             tau_s = np.logspace(0, top, int(np.ceil(per * top)) + 1) / rate
     else:
-        tau_s = np.asarray(taus, float).ravel()
+        try:
+            tau_s = np.asarray(taus, float).ravel()
+        except (TypeError, ValueError):  # -o taus='[1, "a"]' or a mapping
+            raise AnalysisError(f"taus {taus!r}: expected octave, decade, <k>-per-decade or a list of taus in s") from None
     m = np.round(tau_s * rate)
     m = np.sort(m[(m > 0) & (m < n_phase)]).astype(np.int64)
     m = m[np.concatenate(([True], m[1:] != m[:-1]))[:len(m)]]  # unique (np.unique imports numpy.ma, ~40 ms)

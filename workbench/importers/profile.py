@@ -192,7 +192,7 @@ def _check_section_step(step: Mapping, where: str) -> None:
         raise ImportProfileError(f"{where}.kind {step.get('kind')!r} is unknown (expected one of {', '.join(STEP_KINDS)})")
     try:
         mount_matrix(step.get("mount", "z-down"))
-    except (RigLimitError, TypeError, ValueError) as exc:
+    except RigLimitError as exc:
         raise ImportProfileError(f"{where}.mount: {exc}") from None
     for key in ("turn_deg", "table_rate_dps"):
         _number(step.get(key), f"{where}.{key}", -1e6, 1e6, optional=True)
