@@ -20,7 +20,7 @@ import streamlit as st
 
 from dashboard import jobs, roots
 from dashboard.forms import option_inputs
-from dashboard.ui import guarded, in_store, show_error, store
+from dashboard.ui import guarded, in_store, md_escape, show_error, store
 from workbench import registry
 from workbench.errors import WorkbenchError
 from workbench.procedure import ProcedureResult
@@ -158,7 +158,7 @@ def result_picker(procedure: str, key: str = "result") -> ProcedureResult | None
         show_error(exc, f"{procedure} on {folder}")
         return None
     st.info(f"{'Re-analysis' if row is not None else 'No stored result for this session: analysis'} of "
-            f"{folder.name} with {text} (not stored).")
+            f"{md_escape(folder.name)} with {text} (not stored).")
     if st.button(f"Store this analysis ({text})", key=f"{key}.store",
                  help="Stores the result and its calibration set, after the plausibility checks; "
                       "an implausible set is refused (the CLI's --force keeps it, with the failed check noted)."):
@@ -183,7 +183,7 @@ def store_analysis(procedure: str, folder: Path, options: Mapping | None = None)
         show_error(exc, f"storing {procedure} of {folder.name}")
         return False
     cal = result.calibration
-    st.success(f"Stored the {procedure} result of {folder.name}"
+    st.success(f"Stored the {procedure} result of {md_escape(folder.name)}"
                + (f" and calibration set {cal.id}" if cal is not None else "") + ".")
     return True
 

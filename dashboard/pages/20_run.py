@@ -98,12 +98,12 @@ def runs_section() -> None:
         live_progress(picked)
     elif status.state == "failed":
         how = f"failed (exit code {status.exit_code})" if status.exit_code is not None else "was stopped"
-        st.error(f"Run {picked.name} {how} after {status.steps_done} of {status.steps_planned or '?'} steps"
-                 + (f":  \n{status.error}" if status.error else "."), icon="⚠️")
+        st.error(f"Run {ui.md_escape(picked.name)} {how} after {status.steps_done} of {status.steps_planned or '?'} "
+                 "steps" + (f":  \n{ui.md_escape(status.error)}" if status.error else "."), icon="⚠️")
         with st.expander("Output of the run"):
             st.code(status.log or "(no output)", language=None)
     else:
-        st.success(f"Run {picked.name} finished: {status.steps_done} steps recorded.")
+        st.success(f"Run {ui.md_escape(picked.name)} finished: {status.steps_done} steps recorded.")
         st.markdown("**Results**")
         if status.result_dir is not None:
             results.show_result(status.result_dir)  # summary (lab units), warnings and figures of result.json
