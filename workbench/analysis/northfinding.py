@@ -253,8 +253,9 @@ def _maytagging(session, obs, geom, lat, drift, where, index_tol, pairs, **_) ->
 
 
 def _pair_spacing(obs) -> float:
-    """Median time (s) between consecutive static positions: how far apart a pair's two averages start."""
-    t = np.sort(obs.t)
+    """Median time (s) between consecutive static positions (rows in time order, as find_north sorts them): how
+    far apart a pair's two averages start."""
+    t = obs.t
     return float(max(np.median(np.diff(t)), np.mean(obs.duration))) if len(t) > 1 else float(np.mean(obs.duration))
 
 
@@ -269,7 +270,7 @@ def _redundant(session, obs, geom, lat, drift, where, positions_per_turn, bias, 
     per_turn = positions_per_turn or 8
     return _MethodFit(fit, "pairing estimate", unit_az, np.repeat(d.turn_time, len(d.pairings)),
                       circular_mean(unit_az), d, azimuth_sigma=sigma,
-                      parts={"spread_inputs": (obs.subset(np.argsort(obs.t)), per_turn, d.mean, bias is not None)})
+                      parts={"spread_inputs": (obs, per_turn, d.mean, bias is not None)})
 
 
 def _per_unit(obs, groups, geom, lat, where, fit, units) -> _MethodFit:

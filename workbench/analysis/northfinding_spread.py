@@ -66,6 +66,7 @@ def redundant_spread(obs: Observations, geom: AxisGeometry, latitude: float, pos
     cov = [window_mean_covariance(start, end, *tm) for tm in terms]
     weight = np.ones(len(axes))  # two positions with the bias removed: fit_harmonic stays unweighted
     turn_std, mean_sigma = np.zeros(positions_per_turn), np.zeros(positions_per_turn)
+    centre = np.eye(n_turns) - 1.0 / n_turns  # deviations from the mean over turns
     for k in range(positions_per_turn):
         k2 = (k + 1) % positions_per_turn
         w = np.zeros((n_turns, n, len(axes)))  # weights of each turn's azimuth on the position means
@@ -75,7 +76,6 @@ def redundant_spread(obs: Observations, geom: AxisGeometry, latitude: float, pos
         if not bias_known:
             w -= w.sum(axis=1, keepdims=True) / n  # the session mean removed from every position
         s = sum(w[:, :, i] @ cov[i] @ w[:, :, i].T for i in range(len(axes)))  # (T, T) generalised
-        centre = np.eye(n_turns) - 1.0 / n_turns
         turn_std[k] = np.sqrt(max(np.trace(centre @ s @ centre), 0.0) / max(n_turns - 1, 1))
         mean_sigma[k] = np.sqrt(max(np.mean(s), 0.0)) if not bias_known else np.nan
     return PairingSpread(turn_std, mean_sigma)
