@@ -12,6 +12,8 @@ import importlib
 import os
 import pkgutil
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 import typer
 from rich.console import Console
@@ -66,6 +68,23 @@ out = _Console(markup=False, highlight=False)
 def styled(tag: str, style: str, rest: str = "") -> Text:
     """``tag`` in ``style`` followed by ``rest`` verbatim (no markup is parsed in either)."""
     return Text.assemble((tag, style), rest)
+
+
+@contextmanager
+def progress_bar(*columns) -> Iterator:
+    """A rich progress bar with ``columns`` on stderr. A command that fails while it shows clears it,
+    so the error is the one line left (a rig refusing the plan, a rig that cannot be opened)."""
+    from rich.progress import Progress
+
+    bar = Progress(*columns, console=err, transient=False)
+    bar.start()
+    try:
+        yield bar
+    except BaseException:
+        bar.live.transient = True
+        bar.live.stop()  # not bar.stop(): it ends a non-terminal's output with an empty line
+        raise
+    bar.stop()
 
 
 def _version(value: bool) -> None:

@@ -5,9 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import typer
-from rich.progress import BarColumn, Progress, TextColumn
+from rich.progress import BarColumn, TextColumn
 
-from workbench.cli import err, out, styled
+from workbench.cli import err, out, progress_bar, styled
 from workbench.cli.run import parse_options
 
 
@@ -27,9 +27,8 @@ def batch(procedure: str = typer.Argument(..., metavar="PROCEDURE"),
     get_procedure(procedure)  # an unknown procedure fails before a cluster starts
     store = None if no_store else Store()
     opts = parse_options(option)
-    bar = Progress(TextColumn("batch", style="bold"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
-                   TextColumn("{task.fields[last]}"), console=err)
-    with bar:
+    with progress_bar(TextColumn("batch", style="bold"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
+                      TextColumn("{task.fields[last]}")) as bar:
         task = bar.add_task("batch", total=len(session_dirs), last="")
 
         def progress(done: int, total: int, outcome: dict) -> None:
@@ -59,8 +58,8 @@ def simulate_fleet_cmd(grade: str = typer.Option(..., "--grade", help="Grade nam
     """Record a procedure for N simulated units of one grade (one session folder per unit)."""
     from workbench.fleet.simulate import simulate_fleet
 
-    with Progress(TextColumn("simulate", style="bold"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
-                  console=err) as bar:
+    with progress_bar(TextColumn("simulate", style="bold"), BarColumn(),
+                      TextColumn("{task.completed}/{task.total}")) as bar:
         task = bar.add_task("simulate", total=units)
         dirs = simulate_fleet(grade, units, procedure, out_dir, seed, options=parse_options(option),
                               progress=lambda k, n, d: bar.update(task, completed=k))

@@ -14,7 +14,7 @@ import typer
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
-from workbench.cli import err, out, styled
+from workbench.cli import err, out, progress_bar, styled
 from workbench.errors import ProcedureError, WorkbenchError
 from workbench.options import declarations, option_rows, split, validate
 from workbench.registry import procedure, procedures
@@ -50,9 +50,9 @@ def _is_number(value) -> bool:
 
 
 def _progress_bar():
-    return Progress(TextColumn("{task.description}", style="bold", markup=False), BarColumn(),
-                    TextColumn("{task.completed}/{task.total} steps"), TextColumn("{task.fields[step]}", markup=False),
-                    TimeRemainingColumn(), console=err, transient=False)
+    return progress_bar(TextColumn("{task.description}", style="bold", markup=False), BarColumn(),
+                        TextColumn("{task.completed}/{task.total} steps"),
+                        TextColumn("{task.fields[step]}", markup=False), TimeRemainingColumn())
 
 
 def _tracker(bar: Progress, name: str, total: int | None = None):
@@ -184,17 +184,12 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
         campaign_options = _campaign_options(parse_options(option))
         out_dir = out_dir or _default_out("campaign", truth.serial)
         out.print(f"campaign for {truth.serial} ({spec.name}) on {cfg.name}, seed {seed} -> {out_dir}", soft_wrap=True)
+        plans = _campaign_plans(spec, cfg, campaign_options)  # every plan within the rig's limits first
         if dry_run:
-            from workbench.jobs import applies
-            from workbench.registry import campaign_procedures
-
-            for p in campaign_procedures(set(spec.triads)):
-                if applies(p, spec):
-                    seq = p.sequence(spec, **split(p, campaign_options.get(p.NAME))[0])
-                    _print_sequence(seq)
-                    check_plan(seq.expand(), cfg, spec.sample_rate_hz)
+            for seq in plans.values():
+                _print_sequence(seq)
             return
-        totals = _step_totals(spec, campaign_options)
+        totals = {name: len(seq.expand()) for name, seq in plans.items()}
         with _progress_bar() as bar:
             res = run_campaign(spec, truth, cfg, seed, out_dir, store,
                                lambda name: _tracker(bar, name, totals.get(name)), options=campaign_options,
@@ -217,8 +212,9 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
     seq_options, analysis_options = split(proc, options)  # refuses a misspelt option before anything runs
     seq = proc.sequence(spec, **seq_options)
     _print_sequence(seq)
+    # the limits the rig checks before anything moves, checked before the progress bar starts
+    check_plan(seq.expand(), cfg, spec.sample_rate_hz)
     if dry_run:
-        check_plan(seq.expand(), cfg, spec.sample_rate_hz)  # the limits the rig checks before anything moves
         out.print(f"within the limits of rig {cfg.name}")
         return
     out_dir = out_dir or _default_out(proc.NAME, truth.serial)
@@ -231,14 +227,24 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
     _analyse_and_report(proc, session, out_dir, store, cal, analysis_options, not no_figures, force)
 
 
-def _step_totals(spec, campaign_options: dict[str, dict]) -> dict[str, int]:
-    """Steps each campaign procedure will record, from its sequence, so a progress bar shows its total at once."""
+def _campaign_plans(spec, cfg, campaign_options: dict[str, dict]) -> dict:
+    """The sequence of each campaign procedure that applies to grade ``spec``, each checked against
+    the limits of rig ``cfg`` (RigLimitError naming the step), so a refusal comes before any progress
+    bar or recording; options naming a procedure the campaign does not run are refused."""
     from workbench.jobs import applies
-    from workbench.options import split
     from workbench.registry import campaign_procedures
+    from workbench.rigconfig import check_plan
 
-    return {p.NAME: len(p.sequence(spec, **split(p, campaign_options.get(p.NAME))[0]).expand())
-            for p in campaign_procedures(set(spec.triads)) if applies(p, spec)}
+    procs = [p for p in campaign_procedures(set(spec.triads)) if applies(p, spec)]
+    idle = sorted(set(campaign_options) - {p.NAME for p in procs})
+    if idle:
+        raise ProcedureError(f"campaign: -o {idle[0]}.*: {idle[0]} is not in the campaign of grade {spec.name} "
+                             f"(campaign: {', '.join(p.NAME for p in procs)})")
+    plans = {}
+    for p in procs:
+        plans[p.NAME] = p.sequence(spec, **split(p, campaign_options.get(p.NAME))[0])
+        check_plan(plans[p.NAME].expand(), cfg, spec.sample_rate_hz)
+    return plans
 
 
 def _campaign_options(options: dict) -> dict[str, dict]:
