@@ -52,8 +52,35 @@ def procedure(name: str) -> ModuleType:
         pass
     procs = procedures()
     if name not in procs:
-        raise ProcedureError(f"unknown procedure {name!r} (known: {', '.join(sorted(procs)) or 'none'})")
+        raise ProcedureError(f"unknown procedure {name!r} {unknown_hint(name, sorted(procs))}")
     return procs[name]
+
+
+def procedure_names() -> list[str]:
+    """The registered procedures' names, read from the ``NAME`` literal of each module's source
+    (a module whose ``NAME`` is not a literal is imported to find out): checking a name costs no import."""
+    pkg = importlib.import_module("procedures")
+    names = []
+    for info in pkgutil.iter_modules(pkg.__path__):
+        if info.name.startswith("_"):
+            continue
+        spec = info.module_finder.find_spec(info.name, None)
+        declared = _constants(getattr(spec, "origin", None), ("NAME",))
+        if "NAME" in declared:
+            names.append(str(declared["NAME"]))
+        else:
+            m = importlib.import_module(f"procedures.{info.name}")
+            if hasattr(m, "NAME") and hasattr(m, "analyze"):
+                names.append(m.NAME)
+    return sorted(names)
+
+
+def unknown_hint(name: str, known: list[str]) -> str:
+    """``(known: a, b, c)`` and, for a near miss of one of ``known``, ``; did you mean 'x'?``."""
+    import difflib
+
+    near = difflib.get_close_matches(str(name), known, n=1, cutoff=0.6)
+    return f"(known: {', '.join(known) or 'none'})" + (f"; did you mean {near[0]!r}?" if near else "")
 
 
 _UNKNOWN = object()

@@ -21,8 +21,14 @@ def test_helpers_are_not_procedures_and_unknown_names_are_refused():
     assert not any(m.__name__.split(".")[-1].startswith("_") for m in registry.procedures().values())
     with pytest.raises(ProcedureError, match=r"unknown procedure 'multipos' \(known: .*multiposition"):
         registry.procedure("multipos")
+    with pytest.raises(ProcedureError, match=r"; did you mean 'magnetometer'\?"):
+        registry.procedure("magnetomter")
     with pytest.raises(ExportError, match=r"unknown export format 'xml' \(known: .*kalibr"):
         registry.exporter("xml")
+
+
+def test_procedure_names_read_without_import_are_the_registered_ones():
+    assert registry.procedure_names() == sorted(registry.procedures())
 
 
 def test_campaign_order_and_triads():

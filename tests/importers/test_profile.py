@@ -96,6 +96,10 @@ CASES = [
     # pandas takes a longer delimiter as a regular expression (and warns on stderr)
     (SINGLE_FILE, _set("reader.delimiter", ";;"), "reader.delimiter ';;': expected one character"),
     (SINGLE_FILE, _set("reader.skip_rows", -3), "reader.skip_rows: expected a finite number"),
+    # the procedure the session is for: a misspelt one was recorded and only failed at analysis
+    (SINGLE_FILE, _set("procedure", "feraris"), "procedure 'feraris': unknown procedure (known: "),
+    (SINGLE_FILE, _set("procedure", "feraris"), "; did you mean 'ferraris'?"),
+    (SINGLE_FILE, _set("procedure", "spin-test"), "procedure 'spin-test': unknown procedure"),
 ]
 
 
@@ -110,3 +114,14 @@ def test_malformed_key_is_one_line_naming_file_and_key(tmp_path, source, edit, k
     msg = str(exc.value)
     assert "\n" not in msg
     assert str(path) in msg and key in msg, msg
+
+
+def test_a_registered_procedure_passes_and_none_is_needed(tmp_path):
+    for value in ("magnetometer", "zupt-alignment", None):
+        prof = _raw(SINGLE_FILE)
+        if value is None:
+            del prof["procedure"]
+        else:
+            prof["procedure"] = value
+        (tmp_path / "p.yaml").write_text(yaml.safe_dump(prof))
+        assert load_profile(tmp_path / "p.yaml").get("procedure") == value

@@ -154,6 +154,13 @@ def _check_shape(prof: Mapping, path: Path) -> None:
     plain_line(unit.get("model", ""), f"{p}unit.model", ImportProfileError)
     for key in ("name", "procedure", "rig"):
         plain_line(prof.get(key, ""), f"{p}{key}", ImportProfileError)
+    if prof.get("procedure"):  # the procedure the session is for: a misspelt one is refused, not recorded
+        from workbench.registry import procedure_names, unknown_hint
+
+        names = procedure_names()
+        if prof["procedure"] not in names:
+            raise ImportProfileError(f"{p}procedure {prof['procedure']!r}: unknown procedure "
+                                     f"{unknown_hint(prof['procedure'], names)}")
     site = _mapping(prof["site"], f"{p}site", optional=False)
     _known(site, SITE_KEYS, f"{p}site.")
     _number(site.get("latitude_deg"), f"{p}site.latitude_deg", -90, 90)
