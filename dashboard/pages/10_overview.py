@@ -11,7 +11,7 @@ from workbench.store import default_url, redact_url
 TITLE = "Overview"
 
 st.title("Calibration workbench")
-st.caption(f"Store: `{redact_url(default_url())}`")
+st.caption(f"Store: {ui.md_escape(redact_url(default_url()))}")  # a path holding ` or * shown as typed
 
 try:
     db = ui.store()

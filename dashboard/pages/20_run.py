@@ -7,6 +7,8 @@ Once a run is started the page leads with it (progress, partial plots, then its 
 keeps the form for the next run below.
 """
 
+import shlex
+
 import streamlit as st
 
 from dashboard import charts, forms, jobs, results, ui
@@ -90,7 +92,9 @@ def runs_section() -> None:
     except WorkbenchError as exc:
         ui.show_error(exc)
         return
-    st.caption(f"`{' '.join(status.job.get('command', []))}`")
+    command = status.job.get("command")
+    if command:  # shell-quoted, as it would be typed; its user text (paths, option values) shown as typed
+        st.caption(ui.md_escape(shlex.join(map(str, command))))
     if status.state == "running":
         if st.button("Stop this run", key="run.stop"):
             jobs.stop_run(picked)

@@ -55,6 +55,15 @@ def test_app_runs_and_shows_overview(seeded_db):
     assert [m.value for m in at.metric][:2] == ["1", "2"]  # one unit, two sets
 
 
+def test_overview_store_caption_is_the_url_as_typed(tmp_path, monkeypatch):
+    folder = tmp_path / "lab `a` *b*"
+    folder.mkdir()
+    monkeypatch.setenv("WORKBENCH_DB", f"sqlite:///{folder}/wb.db")
+    at = page("10_overview.py")
+    assert not at.exception
+    assert f"Store: sqlite:///{tmp_path}/lab \\`a\\` \\*b\\*/wb.db" in texts(at, "caption")
+
+
 def test_overview_store_error_is_readable(tmp_path, monkeypatch):
     monkeypatch.setenv("WORKBENCH_DB", f"sqlite:///{tmp_path}/missing/dir/wb.db")
     at = page("10_overview.py")
@@ -223,6 +232,29 @@ def test_run_page_bad_sequence_is_a_readable_error(fake_run):
     assert not at.exception
     assert any("exceeds the table limit" in e for e in texts(at, "error"))
     assert not [b for b in at.button if b.key == "run.start"]  # nothing to start
+
+
+def test_run_page_caption_is_the_command_as_typed(fake_run, tmp_path, monkeypatch):
+    """The run's command is shown shell-quoted with its user text literal: it was wrapped in backticks, so a
+    backtick in an option value (or a job without a command) left a stray backtick and a broken code span."""
+    import json
+    import shlex
+
+    from dashboard import jobs, ui
+
+    monkeypatch.setenv("WORKBENCH_RUNS", str(tmp_path / "runs"))
+    command = ["workbench", "run", "ok", "--option", 'label="a `b` *c*"', "--out", str(tmp_path / "o p")]
+    for name, job in (("20260101T000000_ok_a", {"procedure": "ok"}), ("20260101T000001_ok_b", {"command": command})):
+        (tmp_path / "runs" / name).mkdir(parents=True)
+        (tmp_path / "runs" / name / jobs.JOB_FILE).write_text(json.dumps({**job, "pid": 0}))
+        (tmp_path / "runs" / name / jobs.EXIT_FILE).write_text("0")
+    at = page("20_run.py")
+    assert not at.exception
+    captions = texts(at, "caption")
+    assert ui.md_escape(shlex.join(command)) in captions, captions
+    assert not any("`" in c.replace("\\`", "") for c in captions), captions  # no unescaped backtick
+    at.selectbox(key="run.pick").select("20260101T000000_ok_a").run()
+    assert not at.exception and not any("`" in c for c in texts(at, "caption"))
 
 
 def test_run_status_progress_while_running(fake_run):
