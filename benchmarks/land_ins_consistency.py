@@ -3,14 +3,15 @@
 Each unit of the tactical grade of table 3-1 (``draw_unit(spec, 1000 + k)``) drives the pre-calibration
 profile (``workbench.sim.roads.precalibration_legs``: 300 s rest, four 90° turns with a 120 s stop after
 each); the land INS (20 states) filters the raw samples, told the grade (``grade_errors``) with the bias
-instability either as a random walk ``B² / 3600 s`` (``random_walk``, before) or as a Gauss-Markov state
-(``gauss_markov``, :mod:`workbench.nav.bias_model`). The heading error at the end of the last stop is
-compared with the filter's heading sigma. Unit cases: ``white`` (white noise only, no bias), ``bias`` (the
-unit's turn-on biases and white noise), ``flicker`` (the unit's turn-on biases, white noise and the grade's
-bias instability B, nothing else), ``all`` (every
-error of the grade: scale factor, misalignment, nonlinearity, g-sensitivity, rate random walk too).
-A consistent filter gives rms(error / sigma) ~ 1 (chi-square 95 % band printed) and a median |error /
-sigma| of 0.674. The same units (seeds) in every column.
+instability as one Gauss-Markov state (``gauss_markov``, before) or as the three-rung Gauss-Markov ladder
+(``ladder``, the default; :mod:`workbench.nav.bias_model`), or as a random walk ``B² / 3600 s``
+(``random_walk``). The heading error at the end of the last stop is compared with the filter's heading
+sigma. Unit cases: ``white`` (white noise only, no bias), ``bias`` (the unit's turn-on biases and white
+noise), ``flicker`` (the turn-on biases, white noise and the grade's bias instability B, nothing else),
+one error of the unit beside the turn-on biases and white noise (``scale``: the scale factors,
+``misalignment``: the off-diagonal of M, ``nonlinearity``, ``g_sensitivity``, ``rrw``: the rate random
+walk), ``all`` (every error of the grade). A consistent filter gives rms(error / sigma) ~ 1 (chi-square
+95 % band printed) and a median |error / sigma| of 0.674. The same units (seeds) in every column.
 
     python benchmarks/land_ins_consistency.py [--units 40] [--cases white,flicker,all]
 """
@@ -42,11 +43,16 @@ def unit_for(case: str, k: int):
         return unit
     changes = {}
     for t in ("gyro", "accel"):
-        n = unit.noise_of(t)
-        bias = getattr(unit, t).bias if case in ("bias", "flicker") else np.zeros(3)
-        changes[t] = TriadModel(bias=bias)
+        n, m = unit.noise_of(t), getattr(unit, t)
+        sm = m.scale_misalignment
+        kept = {"scale": {"scale_misalignment": np.diag(np.diag(sm))},
+                "misalignment": {"scale_misalignment": sm - np.diag(np.diag(sm))},
+                "nonlinearity": {"nonlinearity": m.nonlinearity},
+                "g_sensitivity": {"g_sensitivity": m.g_sensitivity}}.get(case, {})
+        bias = m.bias if case != "white" else np.zeros(3)
+        changes[t] = TriadModel(bias=bias, **kept)
         changes[f"{t}_noise"] = NoiseSpec(white=n.white, bias_instability=n.bias_instability if case == "flicker"
-                                          else np.zeros(3))
+                                          else np.zeros(3), rrw=n.rrw if case == "rrw" else np.zeros(3))
     return replace(unit, **changes)
 
 
@@ -78,7 +84,7 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--units", type=int, default=40)
     p.add_argument("--cases", default="white,flicker,all")
-    p.add_argument("--bias-models", default="random_walk,gauss_markov")
+    p.add_argument("--bias-models", default="gauss_markov,ladder")
     a = p.parse_args()
     models = tuple(a.bias_models.split(","))
     lo, hi = np.sqrt(chi2.ppf([0.025, 0.975], a.units) / a.units)

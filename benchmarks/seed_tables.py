@@ -105,10 +105,10 @@ def _bias_label(in_run_bias_s: float | None) -> str:
 
 
 def covariance_table(latitude_deg: float = 40.0, states: int = 20, in_run_bias_s: float | None = None,
-                     nhc_sigma: float = 0.05, bias_model: str = "gauss_markov") -> dict:
+                     nhc_sigma: float = 0.05, bias_model: str = "ladder") -> dict:
     """Paper 001 table 4-1 (CEP after 1 h) by covariance analysis of a ``states`` filter, and the eq. 49 fit;
     ``in_run_bias_s``: the grade's bias also an in-run random walk (``grade_errors``); ``bias_model``: the
-    grade's bias instability as a Gauss-Markov state or a random walk (``grade_errors``); the straight cases'
+    grade's bias instability as a Gauss-Markov ladder, one state or a random walk (``grade_errors``); the straight cases'
     error budget (the 1-sigma each error source leaves at the end, metres north / east)."""
     from workbench.grades import load_spec
     from workbench.nav.land_ins import LandInsConfig, covariance_analysis, grade_errors
@@ -231,6 +231,8 @@ def monte_carlo(runs: int, scheduler: str, cruise_s: float, out_dir: Path, state
 
 
 def main() -> None:
+    from workbench.nav.land_ins_model import BIAS_MODELS
+
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--skip-lns", action="store_true", help="leave out the thesis drive (~2 min)")
     ap.add_argument("--filter-speed", action="store_true", help="time one 1-h 100 Hz land-INS run")
@@ -250,7 +252,7 @@ def main() -> None:
     ap.add_argument("--nhc-sigma", type=float, default=0.05, help="NHC measurement 1-sigma of the covariance "
                     "tables, m/s (not given by the paper)")
     ap.add_argument("--until", default=None, help="stop the Monte Carlo after the round running at HH:MM UTC")
-    ap.add_argument("--bias-model", default="gauss_markov", choices=("gauss_markov", "random_walk"),
+    ap.add_argument("--bias-model", default="ladder", choices=BIAS_MODELS,
                     help="the grades' bias instability in the covariance tables' filter (the Monte Carlo's: "
                          "grade_errors' default)")
     args = ap.parse_args()

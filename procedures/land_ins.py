@@ -3,9 +3,11 @@
 The 15/20-state error-state EKF of :mod:`workbench.nav.land_ins` (paper 001 eq. 1-47) runs
 twice, on the raw samples and on the samples compensated with the set; its process noise and
 initial bias sigmas come from the set's noise block and bias sigmas (raw: the grade-free
-``raw_*`` priors). The block's bias instability is a Gauss-Markov state of each triad (``bias_model``,
-:mod:`workbench.nav.bias_model`: sigma 1.076 B, correlation time at the block's Allan minimum / 1.893)
-beside the rate random walk, or (``random_walk``) spread into the bias random walk as before. No GNSS is used; the drive's GPS fixes, where present, are the reference the
+``raw_*`` priors). The block's bias instability is, per triad (``bias_model``, :mod:`workbench.nav.bias_model`),
+a ladder of three Gauss-Markov states a decade apart around the block's Allan minimum whose summed Allan
+deviation is the flicker floor (``ladder``, the default), one Gauss-Markov state (``gauss_markov``: sigma
+1.076 B, correlation time at the Allan minimum / 1.893), each beside the rate random walk, or
+(``random_walk``) spread into the bias random walk. No GNSS is used; the drive's GPS fixes, where present, are the reference the
 horizontal error is measured against (the paper's SPAN reference), in metres and % of the
 distance travelled (the GPS track length).
 
@@ -30,9 +32,8 @@ from workbench.calset import CalibrationSet
 from workbench.earth import radii
 from workbench.errors import AnalysisError
 from workbench.nav.compensate import check_calibration, compensate, imu_samples, process_noise
-from workbench.nav.bias_model import gauss_markov_from_allan
 from workbench.nav.land_ins import GradeErrors, LandInsConfig, run_land_ins
-from workbench.nav.land_ins_model import BIAS_MODELS
+from workbench.nav.land_ins_model import BIAS_MODELS, bias_instability_states
 from workbench.nav.lns import track_length
 from workbench.nav.road import gps_fixes, thin
 from workbench.options import Option, check_options, defaults
@@ -72,8 +73,8 @@ OPTIONS = (
            unit="deg/h", gt=0),
     Option("raw_accel_bias_prior_mg", "analysis", "float", 5.0, "accelerometer bias prior of the raw run",
            unit="mg", gt=0),
-    Option("bias_model", "analysis", "str", "gauss_markov", "the set's bias instability as a Gauss-Markov state or "
-           "spread into the bias random walk", choices=BIAS_MODELS),
+    Option("bias_model", "analysis", "str", "ladder", "the set's bias instability as a ladder of Gauss-Markov states, "
+           "one Gauss-Markov state or spread into the bias random walk", choices=BIAS_MODELS),
     Option("force", "analysis", "bool", False, "accept a set of another serial"),
 )
 DEFAULTS = defaults(OPTIONS)
@@ -130,13 +131,11 @@ def _grade(cal: CalibrationSet, calibrated: bool, noise, o) -> GradeErrors:
         mis[t] = np.where(np.isfinite(worst) & (worst > 0), 2 * worst, o.si("raw_misalignment_prior_mrad"))
     walk, markov = {"gyro": noise.gyro_bias_rw, "accel": noise.accel_bias_rw}, {}
     for t, white in (("gyro", noise.gyro_white), ("accel", noise.accel_white)):
-        if o["bias_model"] == "gauss_markov":
-            rrw = np.nan_to_num(cal.noise_term(t, "rrw"))
+        rrw = np.nan_to_num(cal.noise_term(t, "rrw"))
+        if o["bias_model"] != "random_walk":
             walk[t] = rrw
-            markov[t] = gauss_markov_from_allan(white, cal.noise_term(t, "bias_instability"), rrw,
-                                                cal.noise_term(t, "quantization"), cal.noise_term(t, "rate_ramp"))
-        else:
-            markov[t] = (np.zeros(3), np.full(3, np.inf))
+        markov[t] = bias_instability_states(o["bias_model"], white, cal.noise_term(t, "bias_instability"), rrw,
+                                            cal.noise_term(t, "quantization"), cal.noise_term(t, "rate_ramp"))
     return GradeErrors(ba, bg, noise.accel_white, noise.gyro_white, walk["accel"], walk["gyro"],
                        scale["gyro"], mis["gyro"], scale["accel"], mis["accel"], *markov["gyro"], *markov["accel"])
 

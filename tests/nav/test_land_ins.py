@@ -241,21 +241,22 @@ def test_straight_cruise_error_matches_the_closed_form_schuler_budget():
 
 
 def test_gauss_markov_bias_state_keeps_its_steady_state_through_the_discretisation():
-    # without measurements a Gauss-Markov state started at sigma^2 stays there: P = Phi P Phi + Q_k with the
-    # second-order Phi and trapezoidal Q_k of eq. 11 at dt / T = 1e-3 is off by O((dt / T)^2) relative
-    from workbench.nav.land_ins import GG, LandInsConfig, discretise, error_dynamics, state_index
+    # without measurements every Gauss-Markov rung started at sigma^2 stays there: P = Phi P Phi + Q_k with the
+    # second-order Phi and trapezoidal Q_k of eq. 11 at dt / T <= 1e-2 (the fastest rung, T = 98 s) is off by
+    # O((dt / T)^2) relative; the rungs stay uncorrelated
+    from workbench.nav.land_ins import GG, MAX_RUNGS, LandInsConfig, discretise, error_dynamics, state_index
 
     ge = grade_errors(load_spec("tactical_low_noise"))
     cfg = LandInsConfig()
     ix = state_index(cfg, ge)
-    assert set(range(38, 44)) <= set(ix) and len(ix) == 26  # 20 states + the two triads' bias instability
+    assert set(range(38, 38 + 6 * MAX_RUNGS)) <= set(ix) and len(ix) == 20 + 6 * MAX_RUNGS  # 20 + both ladders
     F, gqg = error_dynamics(np.eye(3), np.array([0.0, 0.0, -9.8]), np.zeros(3), LAT, H, ge, cfg)
     phi, q = discretise(F, gqg, 1.0)
-    p = np.diag(ge.gyro_gm_sigma ** 2)
+    p = np.diag(ge.gyro_gm_sigma.ravel() ** 2)
     for _ in range(5000):
         p = phi[GG, GG] @ p @ phi[GG, GG].T + q[GG, GG]
-    np.testing.assert_allclose(np.diag(p), ge.gyro_gm_sigma ** 2, rtol=1e-5)
-    assert np.allclose(np.diag(phi[GG, GG]), np.exp(-1.0 / ge.gyro_gm_tau), rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(p, np.diag(ge.gyro_gm_sigma.ravel() ** 2), rtol=1e-4, atol=1e-20)
+    assert np.allclose(np.diag(phi[GG, GG]), np.exp(-1.0 / ge.gyro_gm_tau.ravel()), rtol=0.0, atol=1e-6)
 
 
 def test_filter_is_consistent_with_a_gauss_markov_gyro_bias_it_is_told():
@@ -288,6 +289,44 @@ def test_filter_is_consistent_with_a_gauss_markov_gyro_bias_it_is_told():
         w[0] = rng.standard_normal(3) * sigma
         s = replace(s, gyro=s.gyro + lfilter([1.0], [1.0, -a], w, axis=0))
         res = run_land_ins(s, LAT, LON, H, 0.0, ge, LandInsConfig())
+        i = min(int(np.searchsorted(tr["t"].to_numpy(), res.t[-1])), len(tr) - 1)
+        z.append(((res.rph[-1, 2] - tr["yaw"].iloc[i] + np.pi) % (2 * np.pi) - np.pi) / res.sigma[-1, 8])
+    lo, hi = np.sqrt(chi2.ppf([0.005, 0.995], 12) / 12)
+    assert lo < np.sqrt(np.mean(np.square(z))) < hi, np.round(z, 2)
+
+
+def _flicker_unit(spec, seed: int):
+    """A unit of ``spec`` with its turn-on biases, white noise and the grade's bias instability B (the virtual
+    IMU's flicker generator, flat ADEV from one sample to 1e5 s), no other error."""
+    from dataclasses import replace
+
+    from workbench.grade_types import NoiseSpec
+
+    full = draw_unit(spec, seed)
+    changes = {}
+    for t in ("gyro", "accel"):
+        n = full.noise_of(t)
+        changes[t] = type(getattr(full, t))(bias=getattr(full, t).bias)
+        changes[f"{t}_noise"] = NoiseSpec(white=n.white, bias_instability=n.bias_instability)
+    return replace(full, **changes)
+
+
+def test_heading_is_consistent_with_flicker_bias_instability_through_the_ladder():
+    # flicker (the simulator's cascade, not a Gauss-Markov process) of the tactical grade's B = 0.1 °/h on units
+    # with turn-on biases and white noise; the filter told the grade (the default three-rung ladder). Heading
+    # error / sigma after the full pre-calibration over 12 units: for a consistent filter 12 rms(z)^2 ~ chi2(12),
+    # two-sided 99 % band [0.52, 1.53]. Measured 40 units (benchmarks/land_ins_consistency.py): 1.02 with the
+    # ladder, 1.68 with one Gauss-Markov state
+    from scipy.stats import chi2
+
+    spec = load_spec("tactical_low_noise")
+    ge = grade_errors(spec)
+    z = []
+    for k in range(12):
+        session, truth = drive(drive_config(precalibration_legs(), Site(40.0, 33.0, 900.0), 0.0),
+                               _flicker_unit(spec, 1000 + k), 1000 + k)
+        tr = truth["trajectory"]
+        res = run_land_ins(imu_samples(session.samples, session.sample_rate_hz), LAT, LON, H, 0.0, ge, LandInsConfig())
         i = min(int(np.searchsorted(tr["t"].to_numpy(), res.t[-1])), len(tr) - 1)
         z.append(((res.rph[-1, 2] - tr["yaw"].iloc[i] + np.pi) % (2 * np.pi) - np.pi) / res.sigma[-1, 8])
     lo, hi = np.sqrt(chi2.ppf([0.005, 0.995], 12) / 12)

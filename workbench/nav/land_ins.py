@@ -20,8 +20,9 @@ metres):
     δv̇ = -[f^n×] δψ + C_b^n b_a - [(2 ω_ie + ω_en)×] δv + (0, 0, 2g/R δr_D)
     δψ̇ = -[ω_in×] δψ - ∂ω_en/∂v δv - ∂ω_ie/∂r δr + C_b^n b_g
     ḃ_a, ḃ_g: random walks; δw, δl: random constants (small random walk, eq. 6-9)
-    δβ̇_g = -δβ_g / T_g + w, δβ̇_a = -δβ_a / T_a + w: the bias instability as a Gauss-Markov state
-    (:mod:`workbench.nav.bias_model`), entering as ``C_b^n δβ`` beside the biases (and in the ZARUPT)
+    δβ̇_g = -δβ_g / T_g + w, δβ̇_a = -δβ_a / T_a + w per rung: the bias instability as a ladder of
+    Gauss-Markov states (:mod:`workbench.nav.bias_model`), their sum entering as ``C_b^n Σ δβ`` beside
+    the biases (and in the ZARUPT)
 
 ``G w`` with ``w = [accel white, gyro white, accel bias RW, gyro bias RW]`` (eq. 4-5).
 
@@ -55,8 +56,8 @@ import numpy as np
 
 from workbench.earth import EARTH_RATE, normal_gravity, radii
 from workbench.nav.land_ins_model import (  # noqa: F401  (re-exported: the model's public names)
-    A_, BA, BG, BW, GA, GG, LA, N_STATES, P_, SA, SG, STATE_COUNTS, V_, GradeErrors, LandInsConfig, discretise,
-    error_dynamics, grade_errors, nhc_jacobian, scale_columns, state_index)
+    A_, BA, BG, BW, GA, GG, LA, MAX_RUNGS, N_STATES, P_, SA, SG, STATE_COUNTS, V_, GradeErrors, LandInsConfig,
+    discretise, error_dynamics, grade_errors, nhc_jacobian, rungs_of, scale_columns, state_index)
 from workbench.nav import nav_results
 from workbench.nav.strapdown import integrated_noise_cross, sequential_update, skew
 
@@ -79,11 +80,12 @@ def _static_mask(speed: np.ndarray) -> np.ndarray:
 BUDGET_INITIAL = {"initial position, velocity": (0, 1, 2, 3, 4, 5), "initial tilt + accel bias": (6, 7, 9, 10, 11),
                   "initial heading": (8,), "gyro bias x, y (table 3-1)": (12, 13), "gyro bias z (table 3-1)": (14,),
                   "initial boresight, lever arm": tuple(range(15, 20)), "scale factor, misalignment": tuple(range(20, 38)),
-                  "initial bias instability (Gauss-Markov)": tuple(range(38, 44))}
+                  "initial bias instability (Gauss-Markov)": tuple(range(GG.start, N_STATES))}
 GYRO_WHITE = "ARW (in the attitude and the ZARUPT)"  # one source: the ZARUPT sees the noise the attitude integrates
 BUDGET_NOISE = {"VRW": (3, 4, 5), GYRO_WHITE: (6, 7, 8), "accel bias random walk": (9, 10, 11),
                 "gyro bias random walk": (12, 13, 14), "boresight, lever-arm random walk": tuple(range(15, 20)),
-                "gyro bias instability (Gauss-Markov)": (38, 39, 40), "accel bias instability (Gauss-Markov)": (41, 42, 43)}
+                "gyro bias instability (Gauss-Markov)": tuple(range(GG.start, GG.stop)),
+                "accel bias instability (Gauss-Markov)": tuple(range(GA.start, GA.stop))}
 BUDGET_MEASUREMENT = ("ZUPT noise", "NHC noise")
 
 
@@ -93,7 +95,7 @@ def covariance_analysis(trajectory, grade: GradeErrors, cfg: LandInsConfig = Lan
     at every filter step: ZUPT + ZARUPT where the vehicle stands still, NHC while it moves.
 
     The trajectory is sampled at ``cfg.update_s`` (it may be generated at that rate). Returns
-    ``t`` (M,) s, ``sigma`` (M, 44; NaN for the states the filter does not carry), ``cep_m`` at the end,
+    ``t`` (M,) s, ``sigma`` (M, N_STATES; NaN for the states the filter does not carry), ``cep_m`` at the end,
     ``p_end`` (n, n) over the filter's states (:func:`state_index`) and ``heading_change_deg``
     (total absolute heading change while moving). With ``budget``, also ``budget``: the final
     covariance split by error source (:data:`BUDGET_INITIAL`, :data:`BUDGET_NOISE`,
@@ -116,21 +118,23 @@ def covariance_analysis(trajectory, grade: GradeErrors, cfg: LandInsConfig = Lan
     c_bp = np.eye(3)
     zr = np.zeros(3)
     r_zarupt = (grade.gyro_white / np.sqrt(cfg.zarupt_window_s) + cfg.zarupt_sigma_floor) ** 2
-    F_all, gqg_all = error_dynamics(tr.c_bn[idx], f_n[idx], tr.v_ned[idx], tr.lat[idx], tr.h[idx], grade, cfg,
-                                    tr.omega_ib_b[idx], tr.f_b[idx])
-    gqg_all = gqg_all[:, ix][:, :, ix]
-    phi_all, q_all = discretise(F_all[:, ix][:, :, ix], gqg_all, dt)
-    gqg_all = gqg_all if budget else None
-    del F_all
     parts = _budget_parts(P, ix) if budget else {}
     for j, i in enumerate(idx):
+        if j % CHUNK == 0:  # the transitions of the next CHUNK steps, batched (the full layout's F is large)
+            chunk = idx[j:j + CHUNK]
+            F_all, gqg_all = error_dynamics(tr.c_bn[chunk], f_n[chunk], tr.v_ned[chunk], tr.lat[chunk], tr.h[chunk], grade,
+                                            cfg, tr.omega_ib_b[chunk], tr.f_b[chunk])
+            gqg_all = gqg_all[:, ix][:, :, ix]
+            phi_all, q_all = discretise(F_all[:, ix][:, :, ix], gqg_all, dt)
+            del F_all
         if j > 0:
-            P = phi_all[j] @ P @ phi_all[j].T + q_all[j]
+            phi = phi_all[j % CHUNK]
+            P = phi @ P @ phi.T + q_all[j % CHUNK]
             for name, part in parts.items():
-                parts[name] = phi_all[j] @ part @ phi_all[j].T
+                parts[name] = phi @ part @ phi.T
             for name, states in ((k, v) for k, v in BUDGET_NOISE.items() if k in parts):  # eq. 11: linear in GQGᵀ
-                g_s = _block(gqg_all[j], states, ix)
-                parts[name] += 0.5 * (phi_all[j] @ g_s @ phi_all[j].T + g_s) * dt
+                g_s = _block(gqg_all[j % CHUNK], states, ix)
+                parts[name] += 0.5 * (phi @ g_s @ phi.T + g_s) * dt
         if still[i]:
             H = _zupt_zarupt_rows(tr.c_bn[i], w_ie_all[i], tr.omega_ib_b[i], ix)
             r = np.concatenate([np.full(3, cfg.zupt_sigma ** 2), r_zarupt])
@@ -164,6 +168,9 @@ def covariance_analysis(trajectory, grade: GradeErrors, cfg: LandInsConfig = Lan
     return out
 
 
+CHUNK = 600  # steps of the covariance analysis whose transitions are computed in one batch
+
+
 def _block(m: np.ndarray, states: tuple[int, ...], ix: np.ndarray) -> np.ndarray:
     """``m`` (n, n) over the filter's states ``ix`` with all but the rows and columns of ``states`` (indices of
     the full layout; those the filter carries) zeroed."""
@@ -195,7 +202,7 @@ def _zupt_zarupt_rows(c_bn: np.ndarray, w_ie: np.ndarray, omega_b: np.ndarray, i
     H[:3, V_] = np.eye(3)
     H[3:, A_] = -skew(w_ie)
     H[3:, BG] = c_bn
-    H[3:, GG] = c_bn
+    H[3:, GG] = rungs_of(c_bn)
     H[3:, SG] = c_bn @ scale_columns(omega_b)
     return H[:, ix]
 
@@ -220,7 +227,7 @@ def _zarupt_cross(c_bn: np.ndarray, f_n: np.ndarray, grade: GradeErrors, cfg: La
 
 
 def _initial_covariance(grade: GradeErrors, cfg: LandInsConfig, heading0: float = 0.0) -> np.ndarray:
-    """Initial covariance (44, 44) after coarse levelling at heading ``heading0`` (rad).
+    """Initial covariance (N_STATES, N_STATES) after coarse levelling at heading ``heading0`` (rad).
 
     Levelling makes the measured specific force vertical, so the tilt absorbs the horizontal
     accelerometer bias: with ``δv̇ = -[f×] δψ + C b_a`` and ``f = (0, 0, -g)``, ``δψ_N = -b_E / g`` and
@@ -244,7 +251,7 @@ def _initial_covariance(grade: GradeErrors, cfg: LandInsConfig, heading0: float 
 
 
 def _initial_sigma(grade: GradeErrors, cfg: LandInsConfig) -> np.ndarray:
-    """Initial 1-sigma of the 44 states (a filter uses those of :func:`state_index`)."""
+    """Initial 1-sigma of the N_STATES states (a filter uses those of :func:`state_index`)."""
     s = np.empty(N_STATES)
     s[P_] = cfg.pos0
     s[V_] = cfg.vel0
@@ -255,16 +262,16 @@ def _initial_sigma(grade: GradeErrors, cfg: LandInsConfig) -> np.ndarray:
     s[LA] = cfg.lever0
     s[SG] = np.concatenate([grade.gyro_scale, np.repeat(grade.gyro_misalignment, 2)])
     s[SA] = np.concatenate([grade.accel_scale, np.repeat(grade.accel_misalignment, 2)])
-    s[GG], s[GA] = grade.gyro_gm_sigma, grade.accel_gm_sigma  # the Gauss-Markov starts in its steady state
+    s[GG], s[GA] = grade.gyro_gm_sigma.ravel(), grade.accel_gm_sigma.ravel()  # the rungs start in their steady state
     return np.maximum(s, 1e-12)
 
 
 @dataclass
 class LandInsResult:
     """Filter output at each step (M,): ``t`` s, ``lat``, ``lon`` rad, ``h`` m, ``v_ned`` (M, 3),
-    ``rph`` (M, 3) rad, ``sigma`` (M, 44; NaN for the states the filter does not carry), ``mode`` (M,)
+    ``rph`` (M, 3) rad, ``sigma`` (M, N_STATES; NaN for the states the filter does not carry), ``mode`` (M,)
     'zupt' | 'nhc' | 'none', ``weights_min`` (M,) the smallest M-estimator weight of the step,
-    ``gyro_bias`` / ``accel_bias`` (M, 3) (the random constant plus the Gauss-Markov bias instability),
+    ``gyro_bias`` / ``accel_bias`` (M, 3) (the random constant plus the Gauss-Markov rungs of the bias instability),
     ``boresight`` (M, 2) rad, ``lever_arm`` (M, 3) m; ``gyro_scale`` / ``accel_scale`` (M, 9) the
     scale-factor and misalignment estimates (:func:`scale_columns` order; zeros without those states);
     ``bias_sigma`` (M, 6) the 1-sigma of ``gyro_bias`` and ``accel_bias`` (the constant and the Gauss-Markov
@@ -334,7 +341,7 @@ def run_land_ins(samples, lat0: float, lon0: float, h0: float, heading0: float, 
     b_a, b_g = np.zeros(3), np.zeros(3)
     bore, lever = np.zeros(2), np.zeros(3)
     s_g, s_a = np.zeros(9), np.zeros(9)  # scale-factor and misalignment estimates
-    beta_g, beta_a = np.zeros(3), np.zeros(3)  # bias-instability (Gauss-Markov) estimates, rad/s and m/s²
+    beta_g, beta_a = np.zeros((MAX_RUNGS, 3)), np.zeros((MAX_RUNGS, 3))  # bias-instability rungs, rad/s and m/s²
     ix = state_index(cfg, grade)
     nst = len(ix)
     sub = np.ix_(ix, ix)
@@ -345,8 +352,9 @@ def run_land_ins(samples, lat0: float, lon0: float, h0: float, heading0: float, 
     out = {k: np.full((m, 3), np.nan) for k in ("pos", "v", "rph", "ba", "bg", "la")}
     out.update({k: np.zeros((m, 9)) for k in ("sg", "sa")})
     sig = np.full((m, N_STATES), np.nan)
-    total = np.zeros((6, N_STATES))  # gyro, accel bias = the random constant + the Gauss-Markov state
-    total[0:3, BG] = total[0:3, GG] = total[3:6, BA] = total[3:6, GA] = np.eye(3)
+    total = np.zeros((6, N_STATES))  # gyro, accel bias = the random constant + the Gauss-Markov rungs
+    total[0:3, BG] = total[3:6, BA] = np.eye(3)
+    total[0:3, GG] = total[3:6, GA] = rungs_of(np.eye(3))
     total = total[:, ix]
     bias_sig = np.full((m, 6), np.nan)
     bw_out = np.full((m, 2), np.nan)
@@ -359,8 +367,8 @@ def run_land_ins(samples, lat0: float, lon0: float, h0: float, heading0: float, 
         a = j * step
         if j > 0:
             sl = slice(a - step, a + 1)
-            gy = (samples.gyro[sl] - b_g - beta_g) @ (np.eye(3) - _matrix(s_g)).T
-            ac = (samples.accel[sl] - b_a - beta_a) @ (np.eye(3) - _matrix(s_a)).T
+            gy = (samples.gyro[sl] - b_g - beta_g.sum(axis=0)) @ (np.eye(3) - _matrix(s_g)).T
+            ac = (samples.accel[sl] - b_a - beta_a.sum(axis=0)) @ (np.eye(3) - _matrix(s_a)).T
             beta_g, beta_a = beta_g * decay_g, beta_a * decay_a  # the estimate follows the process's mean
             nav = mechanise(lat, lon, h, v, c, gy, ac, dt)
             c_prev = c
@@ -412,14 +420,14 @@ def run_land_ins(samples, lat0: float, lon0: float, h0: float, heading0: float, 
                 b_a, b_g = b_a + dx[BA], b_g + dx[BG]
                 bore, lever = bore - dx[BW], lever - dx[LA]
                 s_g, s_a = s_g + dx[SG], s_a + dx[SA]
-                beta_g, beta_a = beta_g + dx[GG], beta_a + dx[GA]
+                beta_g, beta_a = beta_g + dx[GG].reshape(MAX_RUNGS, 3), beta_a + dx[GA].reshape(MAX_RUNGS, 3)
         else:
             mode[j] = "start"
         out["pos"][j] = (lat, lon, h)
         out["v"][j] = v
         out["rph"][j] = (np.arctan2(c[2, 1], c[2, 2]), -np.arcsin(np.clip(c[2, 0], -1.0, 1.0)),
                          np.arctan2(c[1, 0], c[0, 0]))
-        out["ba"][j], out["bg"][j], out["la"][j] = b_a + beta_a, b_g + beta_g, lever
+        out["ba"][j], out["bg"][j], out["la"][j] = b_a + beta_a.sum(axis=0), b_g + beta_g.sum(axis=0), lever
         out["sg"][j], out["sa"][j] = s_g, s_a
         bw_out[j] = bore
         sig[j, ix] = np.sqrt(np.diag(P))

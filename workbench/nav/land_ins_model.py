@@ -7,13 +7,15 @@ states of eq. 2, the boresight and lever arm of eq. 7 (20 states, the paper's fi
 ref. [18]): the gyro's and the accelerometer's scale factor (3) and misalignment (6) each,
 ``δs = (s_x, s_y, s_z, m_xy, m_xz, m_yx, m_yz, m_zx, m_zy)`` with the residual error ``δM u`` of
 the compensated output ``(I - Ŝ)(y - b̂)`` (true minus estimated, like the biases), then the gyro's
-and the accelerometer's bias instability ``δβ_g``, ``δβ_a`` (3 each, body; first-order Gauss-Markov
-states of :mod:`workbench.nav.bias_model`, in a filter whose grade gives them a sigma). A filter of
-``states`` = 15, 20, 29 or 38 uses the leading block plus those (:func:`state_index`). Sign
+and the accelerometer's bias instability ``δβ_g``, ``δβ_a`` (body; up to :data:`MAX_RUNGS` first-order
+Gauss-Markov rungs of 3 states each, rung after rung, of :mod:`workbench.nav.bias_model`'s flicker
+ladder or its single state, in a filter whose grade gives them a sigma; the bias instability is the
+rungs' sum). A filter of ``states`` = 15, 20, 29 or 38 uses the leading block plus those
+(:func:`state_index`). Sign
 conventions and the equations are in :mod:`workbench.nav.land_ins`.
 
-Public: :data:`N_STATES`, the slices ``P_, V_, A_, BA, BG, BW, LA, SG, SA, GG, GA``, :class:`GradeErrors`,
-:func:`grade_errors`, :func:`in_run_rrw`, :class:`LandInsConfig`, :func:`state_index`, :func:`scale_columns`,
+Public: :data:`N_STATES`, :data:`MAX_RUNGS`, the slices ``P_, V_, A_, BA, BG, BW, LA, SG, SA, GG, GA``, :class:`GradeErrors`,
+:func:`grade_errors`, :func:`bias_instability_states`, :func:`in_run_rrw`, :func:`rungs_of`, :class:`LandInsConfig`, :func:`state_index`, :func:`scale_columns`,
 :func:`error_dynamics`, :func:`discretise`, :func:`nhc_jacobian`.
 """
 
@@ -24,16 +26,17 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from workbench.earth import EARTH_RATE, normal_gravity, radii
-from workbench.nav.bias_model import gauss_markov_from_allan
+from workbench.nav.bias_model import LADDER_RUNGS, flicker_ladder, gauss_markov_from_allan
 from workbench.nav.strapdown import skew
 
-N_STATES = 44
+MAX_RUNGS = LADDER_RUNGS  # Gauss-Markov rungs per axis the layout has room for
+N_STATES = 38 + 6 * MAX_RUNGS
 STATE_COUNTS = (15, 20, 29, 38)
-BIAS_MODELS = ("gauss_markov", "random_walk")
+BIAS_MODELS = ("ladder", "gauss_markov", "random_walk")
 P_, V_, A_, BA, BG, BW, LA = (slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), slice(12, 15),
                                slice(15, 17), slice(17, 20))
 SG, SA = slice(20, 29), slice(29, 38)
-GG, GA = slice(38, 41), slice(41, 44)  # gyro / accel bias instability (Gauss-Markov)
+GG, GA = slice(38, 38 + 3 * MAX_RUNGS), slice(38 + 3 * MAX_RUNGS, N_STATES)  # gyro / accel bias instability rungs
 
 
 @dataclass(frozen=True)
@@ -45,8 +48,9 @@ class GradeErrors:
     ``gyro_scale``, ``gyro_misalignment``, ``accel_scale``, ``accel_misalignment`` (dimensionless,
     per axis: the diagonal of M and the off-diagonal terms of its row; random constants, the
     initial sigma of the scale-factor states, 0 = not modelled); ``gyro_gm_sigma`` rad/s,
-    ``accel_gm_sigma`` m/s² and ``gyro_gm_tau``, ``accel_gm_tau`` s: the bias instability as a first-order
-    Gauss-Markov state of that steady-state sigma and correlation time (sigma 0 = no such state).
+    ``accel_gm_sigma`` m/s² and ``gyro_gm_tau``, ``accel_gm_tau`` s: the bias instability as a sum of
+    first-order Gauss-Markov rungs of those steady-state sigmas and correlation times, (rungs, 3) or (3,)
+    for one, stored padded to (:data:`MAX_RUNGS`, 3) (sigma 0, time inf: no such state).
     """
 
     accel_bias: np.ndarray
@@ -64,14 +68,29 @@ class GradeErrors:
     accel_gm_sigma: np.ndarray = field(default_factory=lambda: np.zeros(3))
     accel_gm_tau: np.ndarray = field(default_factory=lambda: np.full(3, np.inf))
 
+    def __post_init__(self) -> None:
+        for t in ("gyro", "accel"):
+            sigma, tau = _padded(getattr(self, f"{t}_gm_sigma"), 0.0), _padded(getattr(self, f"{t}_gm_tau"), np.inf)
+            object.__setattr__(self, f"{t}_gm_sigma", np.where(sigma > 0, sigma, 0.0))
+            object.__setattr__(self, f"{t}_gm_tau", np.where(sigma > 0, tau, np.inf))
+
+
+def _padded(v, fill: float) -> np.ndarray:
+    """``v`` (3,) or (rungs, 3) as (:data:`MAX_RUNGS`, 3), the missing rungs ``fill``."""
+    v = np.atleast_2d(np.asarray(v, float))
+    if v.shape[0] > MAX_RUNGS or v.shape[1:] != (3,):
+        raise ValueError(f"land INS: a bias-instability ladder of shape {v.shape} (at most ({MAX_RUNGS}, 3))")
+    return np.vstack([v, np.full((MAX_RUNGS - v.shape[0], 3), fill)])
+
 
 def grade_errors(spec, bias_correlation_s: float = 3600.0, in_run_bias_s: float | None = None,
-                 bias_model: str = "gauss_markov") -> GradeErrors:
+                 bias_model: str = "ladder") -> GradeErrors:
     """The errors a grade (``workbench.grades.SensorSpec``) tells the filter: table 3-1's bias,
     scale factor, misalignment and noise. The grade's bias instability ``B``: with ``bias_model``
-    ``"gauss_markov"`` a Gauss-Markov state of :func:`workbench.nav.bias_model.gauss_markov_from_allan`
-    (sigma 1.076 B, correlation time at the grade's Allan minimum / 1.893) beside the rate random walk;
-    with ``"random_walk"`` (before) the bias random walk ``sqrt(rrw² + B² / τ)``, ``τ`` =
+    ``"ladder"`` the flicker ladder of :func:`workbench.nav.bias_model.flicker_ladder` (three Gauss-Markov
+    rungs a decade apart around the grade's Allan minimum) beside the rate random walk; ``"gauss_markov"``
+    one state (:func:`workbench.nav.bias_model.gauss_markov_from_allan`: sigma 1.076 B, correlation time
+    at the Allan minimum / 1.893); ``"random_walk"`` the bias random walk ``sqrt(rrw² + B² / τ)``, ``τ`` =
     ``bias_correlation_s`` (as ``workbench.nav.compensate.process_noise``).
 
     ``in_run_bias_s``: the grade's bias (table 3-1's "Bias" / "Rate Bias") is also an in-run
@@ -81,26 +100,35 @@ def grade_errors(spec, bias_correlation_s: float = 3600.0, in_run_bias_s: float 
     noise parameter" (eq. 4-5) whose value table 3-1 does not give: :func:`in_run_rrw` and
     docs/navigation.md, "Table 4-1 and eq. 49".
     """
-    if bias_model not in BIAS_MODELS:
-        raise ValueError(f"land INS: bias_model={bias_model!r} is not one of {', '.join(BIAS_MODELS)}")
     g, a = spec.specs["gyro"], spec.specs["accel"]
-    gm = bias_model == "gauss_markov"
-
-    def rw(ts):
-        return np.sqrt(ts.noise.rrw ** 2 + (0.0 if gm else ts.noise.bias_instability ** 2 / bias_correlation_s)
-                       + in_run_rrw(ts.bias, in_run_bias_s) ** 2)
 
     def markov(ts):
-        if not gm:
-            return np.zeros(3), np.full(3, np.inf)
         n = ts.noise
-        return gauss_markov_from_allan(n.white, n.bias_instability, n.rrw, n.quantization)
+        return bias_instability_states(bias_model, n.white, n.bias_instability, n.rrw, n.quantization)
+
+    def rw(ts):
+        walk = ts.noise.bias_instability ** 2 / bias_correlation_s if bias_model == "random_walk" else 0.0
+        return np.sqrt(ts.noise.rrw ** 2 + walk + in_run_rrw(ts.bias, in_run_bias_s) ** 2)
 
     (sg_g, tau_g), (sg_a, tau_a) = markov(g), markov(a)
     return GradeErrors(np.asarray(a.bias, float), np.asarray(g.bias, float), a.noise.white, g.noise.white,
                        rw(a), rw(g), np.asarray(g.scale_factor, float), np.asarray(g.misalignment, float),
                        np.asarray(a.scale_factor, float), np.asarray(a.misalignment, float),
                        sg_g, tau_g, sg_a, tau_a)
+
+
+def bias_instability_states(bias_model: str, white, bias_instability, rrw=0.0, quantization=0.0,
+                            ramp=0.0) -> tuple[np.ndarray, np.ndarray]:
+    """(sigma, correlation time) of the Gauss-Markov rungs (rungs, 3) that ``bias_model`` makes of a noise
+    block's bias instability (:data:`BIAS_MODELS`; ``"random_walk"``: none). Terms SI, as
+    :func:`workbench.nav.bias_model.flicker_ladder`."""
+    if bias_model not in BIAS_MODELS:
+        raise ValueError(f"land INS: bias_model={bias_model!r} is not one of {', '.join(BIAS_MODELS)}")
+    if bias_model == "random_walk":
+        return np.zeros(3), np.full(3, np.inf)
+    if bias_model == "gauss_markov":
+        return gauss_markov_from_allan(white, bias_instability, rrw, quantization, ramp)
+    return flicker_ladder(white, bias_instability, rrw, quantization, ramp)
 
 
 def in_run_rrw(bias: np.ndarray, in_run_bias_s: float | None) -> np.ndarray:
@@ -157,14 +185,21 @@ class LandInsConfig:
 
 def state_index(cfg: LandInsConfig, grade: GradeErrors) -> np.ndarray:
     """Indices (into the :data:`N_STATES` layout) of the states a filter of ``cfg.states`` carries: the leading
-    block, then the gyro's and the accelerometer's Gauss-Markov bias instability where ``grade`` gives it a sigma."""
+    block, then each of the gyro's and the accelerometer's Gauss-Markov bias-instability rungs to which
+    ``grade`` gives a sigma."""
     if cfg.states not in STATE_COUNTS:
         raise ValueError(f"land INS: states={cfg.states} is not one of {', '.join(map(str, STATE_COUNTS))}")
     ix = [np.arange(cfg.states)]
     for sigma, sl in ((grade.gyro_gm_sigma, GG), (grade.accel_gm_sigma, GA)):
-        if np.any(np.asarray(sigma) > 0):
-            ix.append(np.arange(sl.start, sl.stop))
+        for r in np.flatnonzero(np.any(sigma > 0, axis=1)):
+            ix.append(np.arange(sl.start + 3 * r, sl.start + 3 * r + 3))
     return np.concatenate(ix)
+
+
+def rungs_of(m: np.ndarray) -> np.ndarray:
+    """``m`` (…, 3, 3) repeated for every rung, (…, 3, 3 :data:`MAX_RUNGS`): the columns of a triad's
+    bias-instability rungs, whose sum is the bias instability."""
+    return np.concatenate([m] * MAX_RUNGS, axis=-1)
 
 
 def _skew_n(v: np.ndarray) -> np.ndarray:
@@ -195,8 +230,8 @@ def error_dynamics(c_bn: np.ndarray, f_n: np.ndarray, v_n: np.ndarray, lat, h,
     ``c_bn`` (…, 3, 3), ``f_n``, ``v_n`` (…, 3), ``lat`` rad and ``h`` m (…): one point or a batch.
     ``omega_b`` (rad/s) and ``f_b`` (m/s²) (…, 3), the body-frame rate and specific force, feed the
     scale-factor states (``δψ̇ += C_b^n W(ω) δs_g``, ``δv̇ += C_b^n W(f) δs_a``); without them those
-    columns are zero. The Gauss-Markov bias instability enters like the biases (``C_b^n δβ``) and
-    decays, ``δβ̇ = -δβ / T + w``, ``E[w²] = 2 σ² / T``. A filter uses the rows and columns of
+    columns are zero. Each Gauss-Markov rung of the bias instability enters like the biases (``C_b^n δβ``)
+    and decays, ``δβ̇ = -δβ / T + w``, ``E[w²] = 2 σ² / T``. A filter uses the rows and columns of
     :func:`state_index`.
     """
     lat, h = np.asarray(lat, float), np.asarray(h, float)
@@ -219,10 +254,10 @@ def error_dynamics(c_bn: np.ndarray, f_n: np.ndarray, v_n: np.ndarray, lat, h,
     F[..., 6, 0] = EARTH_RATE * np.sin(lat) / (rm + h)  # -∂ω_ie/∂r_N
     F[..., 8, 0] = EARTH_RATE * np.cos(lat) / (rm + h)
     F[..., A_, BG] = c_bn
-    F[..., A_, GG] = c_bn
-    F[..., V_, GA] = c_bn
-    F[..., GG, GG] = -np.diag(1.0 / np.asarray(grade.gyro_gm_tau, float))
-    F[..., GA, GA] = -np.diag(1.0 / np.asarray(grade.accel_gm_tau, float))
+    F[..., A_, GG] = rungs_of(c_bn)
+    F[..., V_, GA] = rungs_of(c_bn)
+    F[..., GG, GG] = -np.diag(1.0 / grade.gyro_gm_tau.ravel())
+    F[..., GA, GA] = -np.diag(1.0 / grade.accel_gm_tau.ravel())
     if omega_b is not None:
         F[..., A_, SG] = c_bn @ scale_columns(np.asarray(omega_b, float))
     if f_b is not None:
@@ -234,12 +269,12 @@ def error_dynamics(c_bn: np.ndarray, f_n: np.ndarray, v_n: np.ndarray, lat, h,
     qd[BG] = grade.gyro_bias_rw ** 2
     qd[BW] = cfg.boresight_rw ** 2
     qd[LA] = cfg.lever_rw ** 2
-    qd[GG] = 2.0 * np.asarray(grade.gyro_gm_sigma, float) ** 2 / np.asarray(grade.gyro_gm_tau, float)
-    qd[GA] = 2.0 * np.asarray(grade.accel_gm_sigma, float) ** 2 / np.asarray(grade.accel_gm_tau, float)
+    qd[GG] = (2.0 * grade.gyro_gm_sigma ** 2 / grade.gyro_gm_tau).ravel()
+    qd[GA] = (2.0 * grade.accel_gm_sigma ** 2 / grade.accel_gm_tau).ravel()
     gqg = np.zeros(shape + (N_STATES, N_STATES))
     gqg[..., V_, V_] = (c_bn * qd[V_]) @ np.swapaxes(c_bn, -1, -2)  # C diag(q) Cᵀ
     gqg[..., A_, A_] = (c_bn * qd[A_]) @ np.swapaxes(c_bn, -1, -2)
-    idx = np.r_[9:20, 38:44]  # the scale-factor states are random constants (no process noise)
+    idx = np.r_[9:20, 38:N_STATES]  # the scale-factor states are random constants (no process noise)
     gqg[..., idx, idx] = qd[idx]
     return F, gqg
 
