@@ -229,39 +229,53 @@ def _zarupt_cross(c_bn: np.ndarray, f_n: np.ndarray, grade: GradeErrors, cfg: La
 def _initial_covariance(grade: GradeErrors, cfg: LandInsConfig, heading0: float = 0.0) -> np.ndarray:
     """Initial covariance (N_STATES, N_STATES) after coarse levelling at heading ``heading0`` (rad).
 
-    Levelling makes the measured specific force vertical, so the tilt absorbs the horizontal
-    accelerometer bias: with ``δv̇ = -[f×] δψ + C b_a`` and ``f = (0, 0, -g)``, ``δψ_N = -b_E / g`` and
-    ``δψ_E = b_N / g`` (``b^n = C b_a``). The tilt variance gets ``(C b)^2 / g^2`` besides ``tilt0^2``
-    and the tilt-bias covariance is carried: without it the zero-velocity updates of the alignment
-    make the filter believe the horizontal bias known to ``g tilt0`` (0.17 mg for 0.01°), and the
-    bias a turn uncovers drives the velocity beyond the stop detector's 2 sigma (eq. 43).
+    Levelling makes the measured specific force vertical, so the tilt absorbs the horizontal error of the
+    accelerometer's output at rest: with ``δv̇ = -[f×] δψ + C e`` and ``f = (0, 0, -g)``, ``δψ_N = -e_E / g``
+    and ``δψ_E = e_N / g``, ``e^n = C e``, where ``e = b_a + Σ δβ_a + W(f_b) δs_a`` is the bias, its
+    instability rungs and (38 states) the scale factor and misalignment acting on gravity, ``f_b = (0, 0, -g)``
+    (``m_xz g``, ``m_yz g``: 1 mrad reads as 1 mg). The tilt gets ``tilt0²`` plus the levelled share, and its
+    covariance with those states is carried: without it the zero-velocity updates of the alignment make the
+    filter believe the horizontal bias known to ``g tilt0`` (0.17 mg for 0.01°), and the bias a turn
+    uncovers drives the velocity beyond the stop detector's 2 sigma (eq. 43).
     """
-    sig = _initial_sigma(grade, cfg)
-    P = np.diag(sig ** 2)
+    P0 = np.diag(_initial_sigma(grade, cfg) ** 2)
     g = 9.80665
     c, s_ = np.cos(heading0), np.sin(heading0)
     rows = np.array([[c, -s_, 0.0], [s_, c, 0.0]])  # N and E rows of a level C_b^n
-    var_b = grade.accel_bias ** 2
-    cov_n, cov_e = -(rows[1] * var_b) / g, (rows[0] * var_b) / g  # cov(δψ_N, b), cov(δψ_E, b)
-    P[6, BA], P[7, BA] = cov_n, cov_e
-    P[BA, 6], P[BA, 7] = cov_n, cov_e
-    P[6, 6] = cfg.tilt0 ** 2 + float(rows[1] ** 2 @ var_b) / g ** 2
-    P[7, 7] = cfg.tilt0 ** 2 + float(rows[0] ** 2 @ var_b) / g ** 2
+    e_n = np.zeros((2, N_STATES))  # the levelled horizontal specific-force error e^n in the states
+    e_n[:, BA] = rows
+    e_n[:, GA] = rungs_of(rows)
+    if cfg.states >= SA.stop:
+        e_n[:, SA] = rows @ scale_columns(np.array([0.0, 0.0, -g]))
+    tilt = np.array([[0.0, -1.0 / g], [1.0 / g, 0.0]]) @ e_n  # (δψ_N, δψ_E) = (-e_E, e_N) / g
+    P = P0.copy()
+    P[6:8, :] = tilt @ P0
+    P[:, 6:8] = P[6:8, :].T
+    P[6:8, 6:8] = tilt @ P0 @ tilt.T + cfg.tilt0 ** 2 * np.eye(2)
     return P
 
 
 def _initial_sigma(grade: GradeErrors, cfg: LandInsConfig) -> np.ndarray:
-    """Initial 1-sigma of the N_STATES states (a filter uses those of :func:`state_index`)."""
+    """Initial 1-sigma of the N_STATES states (a filter uses those of :func:`state_index`).
+
+    A filter without the accelerometer's scale-factor states (``states`` < 38) takes their action on
+    gravity at rest, ``W((0, 0, -g)) δs_a`` (misalignment ``m_xz g``, ``m_yz g`` and scale factor ``s_z g``),
+    as bias: on a level road the body-frame gravity does not change, so to such a filter it is one. Its
+    variance is added to the accelerometer bias's (1 mrad of the grade reads as 1 mg, table 3-1's bias)."""
     s = np.empty(N_STATES)
     s[P_] = cfg.pos0
     s[V_] = cfg.vel0
     s[A_] = [cfg.tilt0, cfg.tilt0, cfg.yaw0]  # the levelling's share is added by _initial_covariance
-    s[BA] = grade.accel_bias
     s[BG] = grade.gyro_bias
     s[BW] = cfg.boresight0
     s[LA] = cfg.lever0
     s[SG] = np.concatenate([grade.gyro_scale, np.repeat(grade.gyro_misalignment, 2)])
     s[SA] = np.concatenate([grade.accel_scale, np.repeat(grade.accel_misalignment, 2)])
+    on_gravity = 0.0
+    if cfg.states < SA.stop:
+        w = scale_columns(np.array([0.0, 0.0, -9.80665]))
+        on_gravity = (w ** 2) @ s[SA] ** 2
+    s[BA] = np.sqrt(grade.accel_bias ** 2 + on_gravity)
     s[GG], s[GA] = grade.gyro_gm_sigma.ravel(), grade.accel_gm_sigma.ravel()  # the rungs start in their steady state
     return np.maximum(s, 1e-12)
 
