@@ -163,7 +163,8 @@ def test_ulog_sensor_combined_gives_the_accelerometer_its_own_time(tmp_path):
     from workbench.importers.readers import read_log
 
     _write_ulog(tmp_path / "log.ulg", rel_us=700)
-    df = read_log(tmp_path / "log.ulg", {"type": "ulog", "message": "sensor_combined"}, "imu")
+    df, damage = read_log(tmp_path / "log.ulg", {"type": "ulog", "message": "sensor_combined"}, "imu")
+    assert not damage.any
     assert np.array_equal(df["accelerometer_timestamp"], df["timestamp"] + 700)
     assert np.allclose(df["timestamp"] * 1e-6, T, atol=1e-6)
 
@@ -218,3 +219,83 @@ def test_bad_reader_keys(tmp_path, capsys, reader, match):
     assert main(["import", str(p), str(tmp_path / "d"), "--out", str(tmp_path / "s")]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and re.search(match, err), err
+
+
+# -- truncated logs: a recorder that lost power, a copy that did not finish ---------------------------
+def _one_stream(kind: str) -> dict:
+    if kind == "ulog":
+        imu = {"file": "log.ulg", "reader": {"type": "ulog", "message": "sensor_combined"},
+               "time": {"column": "timestamp", "unit": "us"},
+               "columns": {**{f"g{c}": {"column": f"gyro_rad[{i}]"} for i, c in enumerate("xyz")},
+                           **{f"a{c}": {"column": f"accelerometer_m_s2[{i}]"} for i, c in enumerate("xyz")}}}
+    else:
+        imu = {"file": "log.bin", "reader": {"type": "dataflash", "message": "IMU"},
+               "time": {"column": "TimeUS", "unit": "us"},
+               "columns": {**{f"g{c}": {"column": f"Gyr{c.upper()}"} for c in "xyz"},
+                           **{f"a{c}": {"column": f"Acc{c.upper()}"} for c in "xyz"}}}
+    return {"format": "workbench-import/1", "site": {"latitude_deg": 45.0}, "streams": {"imu": imu}}
+
+
+def _cut_log(tmp_path: Path, kind: str, keep) -> Path:
+    """The test log of ``kind`` cut to ``keep(len)`` bytes, in a data folder; returns the profile."""
+    (tmp_path / "d").mkdir()
+    file = tmp_path / "d" / ("log.ulg" if kind == "ulog" else "log.bin")
+    (_write_ulog if kind == "ulog" else _write_dataflash)(file)
+    data = file.read_bytes()
+    file.write_bytes(data[:keep(len(data))])
+    p = tmp_path / "p.yaml"
+    p.write_text(yaml.safe_dump(_one_stream(kind)))
+    return p
+
+
+@pytest.mark.parametrize("kind", ["ulog", "dataflash"])
+def test_a_log_cut_mid_message_imports_what_it_holds_and_says_it_was_truncated(tmp_path, capsys, kind):
+    # 7 bytes short: the last message (mag in the ULog, IMU instance 1 / MAG in the DataFlash log) is cut
+    p = _cut_log(tmp_path, kind, lambda n: n - 7)
+    assert main(["import", str(p), str(tmp_path / "d"), "--out", str(tmp_path / "s")]) == 0
+    out_text = capsys.readouterr().out
+    size = (tmp_path / "d" / ("log.ulg" if kind == "ulog" else "log.bin")).stat().st_size
+    line = next(x for x in out_text.splitlines() if "truncated" in x)
+    assert line.strip().startswith("warning:") and f"truncated at byte {size}" in line and "1 message lost" in line
+    assert f"last sample is at {T[-1]:.6f} s" in line  # the last IMU sample before the cut, log clock
+    s = load_session(tmp_path / "s")
+    damage = s.options["import"]["streams"]["imu"]["damage"]
+    assert damage["file_bytes"] == size and 0 < damage["cut_bytes"] < damage["cut_message_bytes"]
+    assert np.allclose(s.gyro(), GYRO[:len(s.samples)], atol=1e-6) and len(s.samples) == N
+
+
+@pytest.mark.parametrize("kind", ["ulog", "dataflash"])
+def test_a_whole_log_reports_no_damage(tmp_path, capsys, kind):
+    p = _cut_log(tmp_path, kind, lambda n: n)
+    assert main(["import", str(p), str(tmp_path / "d"), "--out", str(tmp_path / "s")]) == 0
+    assert "truncated" not in capsys.readouterr().out
+    assert load_session(tmp_path / "s").options["import"]["streams"]["imu"]["damage"] is None
+
+
+@pytest.mark.parametrize("kind,keep,match", [
+    ("ulog", lambda n: 10, "log.ulg is truncated: 10 bytes, shorter than the 16-byte ULog header"),
+    ("ulog", lambda n: 30, "log.ulg is truncated at byte 30: .* no sensor_combined .* data before the damage"),
+    ("ulog", lambda n: 600, "log.ulg is truncated at byte 600: .*: 1 sample left; nothing to import"),
+    ("dataflash", lambda n: 30, "log.bin is truncated at byte 30: .* no IMU .* records before the damage"),
+])
+def test_a_log_cut_before_its_data_is_one_line(tmp_path, capsys, kind, keep, match):
+    import re
+
+    p = _cut_log(tmp_path, kind, keep)
+    assert main(["import", str(p), str(tmp_path / "d"), "--out", str(tmp_path / "s")]) == 2
+    captured = capsys.readouterr()
+    err_lines = captured.err.strip().splitlines()
+    assert len(err_lines) == 1 and re.search(match, err_lines[0]), err_lines
+    assert captured.out == ""  # the libraries' own prints about the damage are swallowed
+    assert not (tmp_path / "s").exists()
+
+
+def test_dataflash_block_padding_and_skipped_bytes():
+    from workbench.importers.damage import dataflash_damage, ulog_damage
+
+    rec = bytes([0xA3, 0x95, 1]) + bytes(7)  # a 10-byte record of type 1
+    assert not dataflash_damage(rec * 3 + b"\xff" * 200, {1: 10}).any  # block padding of a flash log
+    d = dataflash_damage(rec + b"junk" + rec + rec[:4], {1: 10})
+    assert (d.skipped_bytes, d.cut_bytes, d.cut_of, d.whole_bytes) == (4, 4, 10, 24)
+    u = ulog_damage(bytes(16) + struct.pack("<HB", 2, 68) + b"ab" + struct.pack("<HB", 5, 68) + b"a")
+    assert (u.cut_bytes, u.cut_of, u.whole_bytes) == (4, 8, 21)

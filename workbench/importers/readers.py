@@ -19,17 +19,24 @@ A stream's ``reader.type`` picks one; the table then goes through the same ``tim
   ``MAG``; ``instance``: the ``I`` field, default 0): its fields (``TimeUS`` in us, ``GyrX``, ``AccX``,
   ``MagX`` in mGauss, ...).
 
+A ULog or DataFlash log cut mid-message or holding skipped bytes is read up to the damage and the
+damage returned with the table (:mod:`workbench.importers.damage`); the libraries' own prints
+about it are swallowed.
+
 Public: :func:`read_log`, :data:`READER_TYPES`, :data:`READER_KEYS`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import io
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager, redirect_stderr, redirect_stdout
 from pathlib import Path
 
 import pandas as pd
 
 from workbench.errors import ImportProfileError, WorkbenchError
+from workbench.importers.damage import ULOG_HEADER, Damage, dataflash_damage, ulog_damage
 
 READER_TYPES = ("csv", "parquet", "rosbag", "ulog", "dataflash")
 READER_KEYS = {"csv": {"delimiter", "skip_rows", "comment"}, "parquet": set(), "rosbag": {"topic"},
@@ -75,10 +82,16 @@ def _read_rosbag(path: Path, topic: str, where: str) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def _read_ulog(path: Path, message: str, multi_id: int, where: str) -> pd.DataFrame:
+def _read_ulog(path: Path, message: str, multi_id: int, where: str) -> tuple[pd.DataFrame, Damage]:
     from pyulog import ULog
 
-    log = ULog(str(path), [message])
+    data = path.read_bytes()
+    if len(data) < ULOG_HEADER:
+        raise ImportProfileError(f"{where}: {path.name} is truncated: {len(data)} bytes, shorter than the "
+                                 f"{ULOG_HEADER}-byte ULog header; nothing to import")
+    with _quiet():  # pyulog prints what it finds damaged; the damage is reported here instead
+        log = ULog(str(path), [message])
+    damage = ulog_damage(data, log.file_corruption)
     names = sorted({(d.name, d.multi_id) for d in log.data_list})
     for d in log.data_list:
         if d.name == message and d.multi_id == multi_id:
@@ -86,45 +99,62 @@ def _read_ulog(path: Path, message: str, multi_id: int, where: str) -> pd.DataFr
             if "accelerometer_timestamp_relative" in df:  # sensor_combined: the accelerometer's own sample time
                 rel = df["accelerometer_timestamp_relative"].astype("int64")
                 df["accelerometer_timestamp"] = df["timestamp"].astype("int64") + rel.where(rel != RELATIVE_INVALID, 0)
-            return df
+            return df, damage
+    if damage.any:
+        raise ImportProfileError(f"{where}: {damage.text(path.name)}: no {message} (multi_id {multi_id}) data "
+                                 "before the damage; nothing to import")
     raise ImportProfileError(f"{where}: reader.message {message!r} (multi_id {multi_id}) not in {path.name} "
                              f"(messages: {', '.join(f'{n}[{i}]' for n, i in names) or 'none'})")
 
 
-def _read_dataflash(path: Path, message: str, instance: int, where: str) -> pd.DataFrame:
+def _read_dataflash(path: Path, message: str, instance: int, where: str) -> tuple[pd.DataFrame, Damage]:
     from pymavlink.DFReader import DFReader_binary
 
-    log = DFReader_binary(str(path), zero_time_base=False)
     rows = []
-    while True:
-        m = log.recv_match(type=message)
-        if m is None:
-            break
-        d = m.to_dict()
-        if int(d.get("I", 0)) == instance:
-            d.pop("mavpackettype", None)
-            rows.append(d)
+    with _quiet():  # pymavlink prints each bad header and skip on stderr; the damage is reported here instead
+        log = DFReader_binary(str(path), zero_time_base=False)
+        while True:
+            m = log.recv_match(type=message)
+            if m is None:
+                break
+            d = m.to_dict()
+            if int(d.get("I", 0)) == instance:
+                d.pop("mavpackettype", None)
+                rows.append(d)
+    damage = dataflash_damage(path.read_bytes(), {t: f.len for t, f in log.formats.items()})
     if not rows:
+        if damage.any:
+            raise ImportProfileError(f"{where}: {damage.text(path.name)}: no {message} (instance {instance}) "
+                                     "records before the damage; nothing to import")
         seen = sorted(log.name_to_id) if hasattr(log, "name_to_id") else []
         raise ImportProfileError(f"{where}: reader.message {message!r} (instance {instance}) has no records in "
                                  f"{path.name} (messages: {', '.join(seen[:20]) or 'none'})")
-    return pd.DataFrame(rows)
+    return pd.DataFrame(rows), damage
 
 
-def read_log(path: Path, reader: Mapping, where: str) -> pd.DataFrame:
-    """The table of ``path`` as ``reader`` says (module docstring); WorkbenchError naming ``where``."""
+@contextmanager
+def _quiet() -> Iterator[None]:
+    """Swallow what a reader library prints on stdout and stderr."""
+    with redirect_stdout(io.StringIO()), redirect_stderr(io.StringIO()):
+        yield
+
+
+def read_log(path: Path, reader: Mapping, where: str) -> tuple[pd.DataFrame, Damage | None]:
+    """The table of ``path`` as ``reader`` says (module docstring), and for a ULog or DataFlash log
+    what of it could not be read (:mod:`workbench.importers.damage`; None for the other readers);
+    WorkbenchError naming ``where``, also for a damaged log with nothing of the message before the damage."""
     kind = reader.get("type") or ("parquet" if path.suffix == ".parquet" else "csv")
     place = where if where == str(path) else f"{where}: {path}"  # a single file is its own place
     if not path.exists():
         raise WorkbenchError(f"{place}: no such file")
     try:
         if kind == "parquet":
-            return pd.read_parquet(path)
+            return pd.read_parquet(path), None
         if kind == "csv":
             return pd.read_csv(path, sep=reader.get("delimiter", ","), skiprows=reader.get("skip_rows", 0),
-                               comment=reader.get("comment"))
+                               comment=reader.get("comment")), None
         if kind == "rosbag":
-            return _read_rosbag(path, str(reader["topic"]), where)
+            return _read_rosbag(path, str(reader["topic"]), where), None
         if kind == "ulog":
             return _read_ulog(path, str(reader["message"]), int(reader.get("multi_id", 0)), where)
         return _read_dataflash(path, str(reader["message"]), int(reader.get("instance", 0)), where)

@@ -9,7 +9,7 @@ clock fitted to host arrival stamps: :mod:`workbench.importers.clock`) and detec
 samples (every value equal to the previous sample's: a sensor read faster than it updates)
 and saturated samples (a value at the stream's declared ``range``).
 
-Public: :class:`Stream`, :func:`read_stream`, :data:`TRIAD_OF`.
+Public: :class:`Stream`, :func:`read_stream`, :func:`damage_entry`, :data:`TRIAD_OF`.
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ import pandas as pd
 
 from workbench.errors import ImportProfileError
 from workbench.importers.clock import ClockFit, fit_arrival_clock
+from workbench.importers.damage import Damage
 from workbench.importers.readers import read_log
 from workbench.session import ACCEL, GYRO, MAG
 from workbench.units import factor
@@ -41,7 +42,8 @@ class Stream:
     sample repeats the previous one exactly; ``saturated`` (N,) a value is at the declared range;
     ``clock`` the arrival-stamp fit (None for other time sources); ``index`` (N,) sample counter
     (row number unless a counter column is declared); ``trailing_zero_rows`` all-zero rows dropped
-    from the end (``reader: {trailing_zero_rows: drop}``: a recorder's unfilled buffer)."""
+    from the end (``reader: {trailing_zero_rows: drop}``: a recorder's unfilled buffer); ``damage`` what of a
+    truncated or corrupt log could not be read (:func:`damage_entry`), None when it was whole."""
 
     name: str
     source: str
@@ -53,6 +55,7 @@ class Stream:
     index: np.ndarray
     checks_repeats: bool
     trailing_zero_rows: int = 0
+    damage: dict | None = None
 
     @property
     def triads(self) -> tuple[str, ...]:
@@ -138,7 +141,7 @@ def read_stream(name: str, spec: Mapping, path: Path, reader: Mapping, where: st
     ``clocks`` (shared by the streams of one recording) keeps the arrival-clock fits by stamps, so
     files of one read (the same stamps) are fitted once."""
     reader = {**reader, **(spec.get("reader") or {})}
-    raw = read_log(path, reader, where)
+    raw, damage = read_log(path, reader, where)
     trailing = 0
     if reader.get("trailing_zero_rows") == "drop":  # a preallocated buffer the recorder did not fill
         used = [c for c in raw.columns if c in _used_columns(spec)]
@@ -149,6 +152,9 @@ def read_stream(name: str, spec: Mapping, path: Path, reader: Mapping, where: st
         raise ImportProfileError(f"{where}: {path.name}: no rows")
     values = convert(raw, spec["columns"], where)
     t, clock, index = _instants(raw, spec, where, {} if clocks is None else clocks)
+    lost = damage_entry(damage, path.name, float(t[-1])) if damage is not None and damage.any else None
+    if lost is not None and len(t) < 2:
+        raise ImportProfileError(f"{where}: {lost['text']}: {len(t)} sample left; nothing to import")
     if np.any(np.diff(t) <= 0):
         row = int(np.argmax(np.diff(t) <= 0)) + 1
         raise ImportProfileError(f"{where}: time: duplicate or non-increasing time at row {row} (t={t[row]})")
@@ -165,7 +171,14 @@ def read_stream(name: str, spec: Mapping, path: Path, reader: Mapping, where: st
         limit = float(rng["value"]) * factor(rng.get("unit", dim)) / factor(dim)
         # the rail itself, one LSB either way: |value| >= the declared full scale
         saturated = np.any(np.abs(v) >= limit * (1 - 1e-9), axis=1)
-    return Stream(name, str(path), t, values, repeated, saturated, clock, index, checks, trailing)
+    return Stream(name, str(path), t, values, repeated, saturated, clock, index, checks, trailing, lost)
+
+
+def damage_entry(damage: Damage, name: str, last_t: float) -> dict:
+    """JSON-ready record of a damaged log for the import summary; ``last_t`` the stream's last instant, s."""
+    return {"file_bytes": damage.file_bytes, "cut_bytes": damage.cut_bytes, "cut_message_bytes": damage.cut_of,
+            "skipped_bytes": damage.skipped_bytes, "corrupt": damage.corrupt, "last_time_s": last_t,
+            "text": damage.text(name)}
 
 
 def _used_columns(spec: Mapping) -> set:

@@ -21,7 +21,7 @@ def _stream_entry(s: Stream) -> dict:
                    "columns": list(s.values.columns), "time": "arrival" if s.clock is not None else "sample",
                    "repeated": int(s.repeated.sum()) if s.checks_repeats else None,
                    "saturated": int(s.saturated.sum()), "duration_s": float(s.t[-1] - s.t[0]),
-                   "trailing_zero_rows_dropped": s.trailing_zero_rows}
+                   "trailing_zero_rows_dropped": s.trailing_zero_rows, "damage": s.damage}
     if s.clock is not None:
         c = s.clock
         p50, p99, pmax = c.latency_percentiles_ms()
@@ -63,6 +63,9 @@ def summary_lines(summary: Mapping) -> list[str]:
                      f"({100 * e['saturated'] / e['samples']:.1f} %)"
                      + (f"; {e['trailing_zero_rows_dropped']} all-zero rows at the end dropped (unfilled buffer)"
                         if e.get("trailing_zero_rows_dropped") else ""))
+        if e.get("damage"):
+            lines.append(f"  warning: {e['damage']['text']}; the stream's last sample is at "
+                         f"{e['damage']['last_time_s']:.6f} s on the log's clock")
         c = e.get("clock")
         if e.get("same_instants_as"):
             lines.append(f"  same instants as {e['same_instants_as']} (one read): copied, not interpolated")
