@@ -211,13 +211,17 @@ def test_hidden_bias_instability_is_one_warning_per_triad(small_soak_session):
     assert not [w for w in warnings if "would not show" in w]
 
 
-def test_order_per_axis_lowest_within_one_standard_error():
+def test_order_per_axis_lowest_the_noise_explains():
     """Campaign-like sweep (7 soaks, -10..50 °C): x truly cubic, y and z quadratic (the grade's scale-factor
     law). Per axis, x gets order 3 and y, z order 2; a common order would impose x's order on y and z.
 
     Truth: the drawn unit's quadratic scale law plus 2e-7 /°C³ on x (30³ * 2e-7 = 5400 ppm at the ends,
-    far above the 40 ppm soak noise: always detectable). The one-standard-error rule with 7 folds picks
-    a higher order than the truth on about 1 quadratic axis in 5 (4 of 20 with these seeds); allowed: 5.
+    far above the 40 ppm soak noise: always detectable). The one-standard-error rule alone, with 7
+    folds, picked a higher order than the truth on about 1 quadratic axis in 5 (4 of 20 with these
+    seeds); capped at the lowest order the soak sigmas explain (chi-squared 95 %) it does so on about
+    1 in 30 (19 of 600 in a 300-unit run), so at most 2 of these 20 (binomial tail 3 %). A quadratic
+    term smaller than the noise (under 40 ppm at the sweep's ends: seeds 7 z and 9 y) is rightly left
+    out: order 1 there.
     """
     from workbench.model import ThermalModel
 
@@ -234,5 +238,8 @@ def test_order_per_axis_lowest_within_one_standard_error():
         common.append(th.fit_thermal_poly(temps, y, s, t_ref_c=23.0, quantity="accel.scale", per_axis=False).orders)
     per_axis, common = np.array(per_axis), np.array(common)
     assert np.all(per_axis[:, 0] == 3)
-    assert np.sum(per_axis[:, 1:] == 2) >= 15, per_axis
+    assert np.sum(per_axis[:, 1:] > 2) <= 2, per_axis
+    m = np.array([draw_unit(SPEC, seed).accel.thermal.scale_poly[:, 2] for seed in range(10)])
+    below_noise = np.abs(m[:, 1:]) * 30.0**2 < sigma  # quadratic shift at the ends under the soak noise
+    assert np.all((per_axis[:, 1:] == 2) | ((per_axis[:, 1:] == 1) & below_noise)), per_axis
     assert np.all(common[:, 1:] >= 3)  # the shared order is x's, too high for y and z

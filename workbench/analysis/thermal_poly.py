@@ -1,7 +1,8 @@
 """Thermal polynomials: per-axis fits in ``(T - t_ref)`` with a cross-validated order and a hysteresis term.
 
 :func:`fit_thermal_poly` -> :class:`PolyFit` (leave one temperature out, the one-standard-error
-rule of Hastie et al. ESL sec. 7.10; the direction term ``h * s``, ``s = +-1/2`` on rising and
+rule of Hastie et al. ESL sec. 7.10, never above the lowest order whose held-out errors the
+points' sigmas explain; the direction term ``h * s``, ``s = +-1/2`` on rising and
 falling branches). :data:`MAX_ORDER`. Part of :mod:`workbench.analysis.thermal`.
 """
 
@@ -12,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from workbench.analysis.chi2 import chi2_ppf
 from workbench.errors import AnalysisError
 from workbench.json_values import json_value as _nan_none
 
@@ -120,9 +122,15 @@ def _wls(a: np.ndarray, y: np.ndarray, w: np.ndarray | None):
     return p, cov * factor
 
 
-def _cv_errors(dt, y, w, s, groups, order) -> np.ndarray | None:
-    """Held-out squared errors per point (leave one group out), or None if infeasible."""
+def _cv_errors(dt, y, w, s, groups, order) -> tuple[np.ndarray, np.ndarray] | None:
+    """Held-out squared errors per point (leave one group out), or None if infeasible.
+
+    Returns (squared errors, the same divided by their expected value ``sigma^2 + a' (A'WA)^-1 a``
+    from the points' own sigmas: 1 on average when the order explains the data to their noise;
+    NaN without weights).
+    """
     err = np.full(len(y), np.nan)
+    z2 = np.full(len(y), np.nan)
     for g in np.unique(groups):
         test = groups == g
         train = ~test
@@ -136,7 +144,10 @@ def _cv_errors(dt, y, w, s, groups, order) -> np.ndarray | None:
         p, _ = _wls(a, y[train], None if w is None else w[train])
         at = _design(dt[test], order, None if s is None else s[test])
         err[test] = (y[test] - at @ p) ** 2
-    return err
+        if w is not None:
+            info = np.linalg.inv((a * w[train][:, None]).T @ a)
+            z2[test] = err[test] / (1.0 / w[test] + np.einsum("ij,jk,ik->i", at, info, at))
+    return err, z2
 
 
 def _group_means(err: np.ndarray, groups: np.ndarray) -> np.ndarray:
@@ -174,13 +185,37 @@ def _select_common_order(cv: list[dict], groups: np.ndarray) -> int:
     return _one_se({k: np.mean([_group_means(c[k], groups) / b for c, b in zip(cv, best)], axis=0) for k in orders})
 
 
+def _explained_order(z2: dict) -> int | None:
+    """Lowest order whose held-out errors the points' own sigmas explain, or None.
+
+    ``z2[order]``: held-out squared errors over their expected value (see :func:`_cv_errors`).
+    Explained: their sum within the 95 % point of chi-squared with one degree of freedom per
+    point. With few temperatures leave-one-out can favour a high order that happens to run
+    through the noise of the others (7 soaks, order 5: each held-out fit interpolates its six
+    points); an order whose held-out errors are already at the noise does not need it.
+    """
+    for k in sorted(z2):
+        n = int(np.isfinite(z2[k]).sum())
+        if n and np.isfinite(z2[k]).all() and z2[k].sum() <= float(chi2_ppf(0.95, n)):
+            return k
+    return None
+
+
+def _simplest(chosen: int, z2: dict) -> int:
+    """``chosen`` (the one-standard-error order), or a lower order the noise already explains."""
+    explained = _explained_order(z2)
+    return chosen if explained is None else min(chosen, explained)
+
+
 def fit_thermal_poly(temperature_c, values, sigma=None, direction=None, groups=None, t_ref_c: float = 25.0,
                      max_order: int = MAX_ORDER, order: int | None = None, quantity: str = "",
                      hysteresis: str = "auto", per_axis: bool = True) -> PolyFit:
     """Fit per-axis polynomials in ``(T - t_ref_c)`` with a cross-validated order.
 
     Each axis has its own order (``per_axis``), the lowest whose held-out (leave one
-    temperature out) mean squared error is within one standard error of that axis's best;
+    temperature out) mean squared error is within one standard error of that axis's best,
+    or, with ``sigma`` given, a lower one whose held-out errors the sigmas already explain
+    (chi-squared, 95 %: :func:`_explained_order`);
     with ``per_axis=False`` the three axes share one order, chosen by the same rule on the
     axis-normalised error (steadier with many temperatures, but one axis's need for a high
     order is then imposed on the others). The held-out RMS of every order is reported per
@@ -235,28 +270,33 @@ def fit_thermal_poly(temperature_c, values, sigma=None, direction=None, groups=N
     dt = tc - t_ref_c
     cv_rms = np.full((len(cv_orders), 3), np.nan)
     cv_rms_h = np.full((len(cv_orders), 3), np.nan)
-    weights, cv_sel = {}, []
+    weights, cv_sel, z2_sel = {}, [], []
     for ax in axes:
         weights[ax] = None if sigma is None else 1.0 / sig[:, ax] ** 2
-        sel = {}
+        sel, z2 = {}, {}
         for k in candidates:
             e0 = _cv_errors(dt, y[:, ax], weights[ax], None, groups, k)
             eh = _cv_errors(dt, y[:, ax], weights[ax], s_all, groups, k) if both else None
             if e0 is not None:
-                cv_rms[k, ax] = np.sqrt(e0.mean())
+                cv_rms[k, ax] = np.sqrt(e0[0].mean())
             if eh is not None:
-                cv_rms_h[k, ax] = np.sqrt(eh.mean())
+                cv_rms_h[k, ax] = np.sqrt(eh[0].mean())
             pick = eh if (both and hysteresis != "off") else e0
             if pick is not None:
-                sel[k] = pick
+                sel[k], z2[k] = pick
         cv_sel.append(sel)
+        z2_sel.append(z2)
     feasible = [k for k in candidates if all(k in c for c in cv_sel)]
     if order is not None:
         axis_order = dict.fromkeys(axes, order)
     elif per_axis:
-        axis_order = {ax: _select_order(sel, groups) if sel else top for ax, sel in zip(axes, cv_sel)}
+        axis_order = {ax: _simplest(_select_order(sel, groups), z2) if sel else top
+                      for ax, sel, z2 in zip(axes, cv_sel, z2_sel)}
     else:
         common = _select_common_order([{k: c[k] for k in feasible} for c in cv_sel], groups) if feasible else top
+        explained = [_explained_order({k: z[k] for k in feasible}) for z in z2_sel]
+        if feasible and None not in explained:
+            common = min(common, max(explained))
         axis_order = dict.fromkeys(axes, common)
     K = max(axis_order.values()) + 1
     coeffs = np.zeros((3, K))
