@@ -1,11 +1,12 @@
-"""The numpy-only NNLS and bracketed root finder against scipy.optimize (the independent reference)."""
+"""The fit's compiled NNLS and the numpy-only bracketed root finder against scipy.optimize (the independent reference)."""
 
 import numpy as np
 import pytest
 from scipy.optimize import brentq, minimize_scalar
 from scipy.optimize import nnls as scipy_nnls
 
-from workbench.analysis.small_solvers import minimize_bounded, nnls, root_bracket
+from workbench.analysis.allan_fit_kernels import lstsq, nnls
+from workbench.analysis.small_solvers import minimize_bounded, root_bracket
 
 
 @pytest.mark.parametrize("seed", range(20))
@@ -20,6 +21,18 @@ def test_nnls_matches_scipy(seed):
     # the solution is unique for full-rank a: equal to rounding of the passive-set solve
     assert r == pytest.approx(r_ref, rel=1e-9, abs=1e-12)
     assert np.allclose(x, x_ref, rtol=1e-7, atol=1e-10 * np.abs(x_ref).max(initial=1.0))
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_lstsq_matches_numpy(seed):
+    # full-rank problems whose columns span up to 12 decades (condition ~1e4-1e9 before the column
+    # scaling): the QR and numpy's SVD solutions agree to the condition of the scaled problem times eps
+    rng = np.random.default_rng(100 + seed)
+    m, n = rng.integers(6, 40), rng.integers(1, 6)
+    a = rng.standard_normal((m, n)) * np.logspace(0, rng.uniform(0, 12), n)
+    b = rng.standard_normal(m)
+    ref = np.linalg.lstsq(a, b, rcond=None)[0]
+    assert np.allclose(lstsq(a, b), ref, rtol=1e-9, atol=0.0)
 
 
 def test_nnls_all_negative_gives_zero():

@@ -60,6 +60,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -68,7 +69,7 @@ from workbench.allan_model import FLICKER_AVAR, avar_basis
 from workbench.analysis.allan_ci import MAX_POINTS_ID, DeviationCI, chi2_ppf
 from workbench.analysis.allan_report import CALSET_NAMES, AllanAnalysis  # noqa: F401 (re-exported)
 from workbench.analysis.allan_terms import TERMS
-from workbench.analysis.small_solvers import minimize_bounded, nnls, root_bracket
+from workbench.analysis.small_solvers import minimize_bounded, root_bracket
 
 FLICKER = FLICKER_AVAR  # AVAR per B^2; ADEV floor 0.664 B (workbench.allan_model)
 CORRELATION = 2.0  # overlapping AVAR points at octave taus share about half their information:
@@ -77,20 +78,6 @@ SLOW_WINDOW_S = 10.0  # s, longest averaging time of the rate mean square behind
 SLOW_MIN_WINDOWS = 20  # windows of it the record must hold
 _IRLS_ITER = 30
 _IRLS_STEP = 1e-4  # change of the model AVAR, in each point's standard deviation, at which the IRLS stops
-
-
-def _nnls_warm(a: np.ndarray, b: np.ndarray, passive: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-    """argmin ||a x - b||, x >= 0, and its passive set: the unconstrained solution on ``passive`` (the
-    last IRLS step's set) when it satisfies the Kuhn-Tucker conditions, else :func:`nnls`."""
-    if passive is not None and passive.any() and np.all(np.isfinite(a)) and np.all(np.isfinite(b)):
-        x = np.zeros(a.shape[1])
-        x[passive] = np.linalg.lstsq(a[:, passive], b, rcond=None)[0]
-        grad = a.T @ (b - a @ x)
-        scale = np.linalg.norm(a, axis=0) * np.linalg.norm(b)
-        if np.all(x[passive] > 0) and np.all(grad[~passive] <= 1e-10 * scale[~passive]):
-            return x, passive
-    x = nnls(a, b)[0] if a.shape[1] else np.zeros(0)
-    return x, x > 0
 
 
 def basis(tau: np.ndarray, ratio: float = np.inf, slow: SlowRate | None = None, q2: float = 0.0) -> np.ndarray:
@@ -262,33 +249,10 @@ class _Family:
         deviance, extrapolated from its last two decreases (IRLS converges linearly), stays above
         ``cutoff``: such a model is no candidate, and its deviance is returned as it is then.
         """
-        avar, edf = self.avar, self.edf
-        sigma = np.sqrt(2.0 / edf)  # relative standard deviation of each AVAR point
-        model = start
-        c = np.zeros(cols.shape[1])
-        passive = None
-        devs = [np.inf]
-        for _ in range(_IRLS_ITER):
-            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):  # far profile points overflow
-                sw = np.sqrt(edf) / np.maximum(model, 1e-300)
-                lhs, rhs = cols * sw[:, None], (avar - offset) * sw
-            new, passive = _nnls_warm(lhs, rhs, passive)
-            if not np.all(np.isfinite(new)):
-                break
-            new_model = offset + cols @ new
-            with np.errstate(invalid="ignore", divide="ignore"):
-                step = float(np.max(np.abs(new_model - model) / (new_model * sigma))) if new_model.min() > 0 \
-                    else np.inf
-            c, model = new, new_model
-            devs.append(deviance(model, avar, edf))
-            if step <= _IRLS_STEP or not model.max() > 0:
-                break
-            if len(devs) >= 4 and np.isfinite(devs[-3]):
-                d1, d2 = devs[-3] - devs[-2], devs[-2] - devs[-1]
-                rate = d2 / d1 if d1 > 0 else 1.0
-                if 0.0 <= rate < 0.9 and devs[-1] - d2 * rate / (1.0 - rate) > cutoff:
-                    break
-        return c, model, devs[-1]
+        from workbench.analysis.allan_fit_kernels import irls
+
+        return irls(np.ascontiguousarray(cols, dtype=float), np.asarray(offset, float), np.asarray(start, float),
+                    self.avar, self.edf, float(cutoff), _IRLS_ITER, _IRLS_STEP, CORRELATION)
 
     def _linear(self, q_col: np.ndarray | None, q_fixed: float | None, n_col: np.ndarray | None,
                 n_fixed: float | None, fixed: dict[int, float], start: np.ndarray,
@@ -380,18 +344,10 @@ class _Family:
         return min(fits, key=lambda f: f.dev)
 
 
-def deviance(model: np.ndarray, avar: np.ndarray, edf: np.ndarray) -> float:
-    """Deviance of the model AVAR ``model`` (K,) for AVAR points ``avar`` with ``edf`` degrees of freedom.
-
-    Each point is a scaled chi-squared variable, avar_k ~ model_k chi2(edf_k) / edf_k; minus twice
-    its log-likelihood, up to a constant, is edf_k (r_k - 1 - ln r_k) with r_k = avar_k / model_k
-    (the gamma deviance). Divided by :data:`CORRELATION` for the information neighbouring
-    overlapping points share. The non-negative IRLS of :class:`_Family` minimises it.
-    """
-    if not np.all(model > 0):
-        return float("inf")
-    r = avar / model
-    return float(np.sum(edf * (r - 1.0 - np.log(r)))) / CORRELATION
+@lru_cache(maxsize=8)
+def _chi2_1(level: float) -> float:
+    """chi2(level, 1), the likelihood-ratio threshold of one term (3.84 at 0.95; ~3 ms a call, made per interval)."""
+    return float(chi2_ppf(level, 1))
 
 
 def profile_interval(family: _Family, k: int, full: _Fit, t_cap: float, level: float = 0.95) -> tuple[float, float]:
@@ -403,7 +359,7 @@ def profile_interval(family: _Family, k: int, full: _Fit, t_cap: float, level: f
     alone would inherit the selection's optimism). ``t_cap`` is where the search for the upper
     limit starts (it grows by 4 until the profile exceeds the threshold).
     """
-    limit = full.dev + chi2_ppf(level, 1)
+    limit = full.dev + _chi2_1(level)
     t_hat = float(full.theta[k])
     seen: dict[float, float] = {}
 
@@ -439,7 +395,7 @@ def _select(family: _Family, full: _Fit) -> list[int]:
     while len(cols) > 1:
         rises = [(family.best({**dropped, k: 0.0}, full.model, d_cur + 4.0).dev - d_cur, k) for k in cols]
         rise, k = min(rises)
-        if rise >= chi2_ppf(0.95, 1):
+        if rise >= _chi2_1(0.95):
             break
         cols.remove(k)
         dropped[k] = 0.0

@@ -1,20 +1,19 @@
-"""Non-negative least squares and bracketed root finding for the small noise-model fits, numpy only.
+"""Bracketed root finding and bounded minimisation for the small noise-model fits, numpy only.
 
-The IEEE 952 and GMWM fits solve problems of at most a few dozen unknowns thousands of times;
+The IEEE 952 fit searches its profiles and quantization ratio hundreds of times per channel;
 scipy.optimize would do it, but importing it costs ~0.5 s of CPU, more than the whole
-``workbench allan`` analysis of a 1e6-sample record. Both algorithms are textbook:
+``workbench allan`` analysis of a 1e6-sample record. Both algorithms are textbook (the fit's
+non-negative least squares are compiled: :mod:`workbench.analysis.allan_fit_kernels`):
 
-* :func:`nnls`: Lawson & Hanson, *Solving Least Squares Problems* (1974), ch. 23 (active set;
-  each passive-set solve by numpy.linalg.lstsq).
 * :func:`root_bracket`: the Illinois variant of regula falsi (Dowell & Jarratt 1971), which keeps
   the bracket and converges superlinearly.
 * :func:`minimize_bounded`: Brent's minimiser on an interval (golden section with parabolic
   steps; Brent, *Algorithms for Minimization without Derivatives* (1973), ch. 5, the algorithm
   of scipy.optimize.fminbound).
 
-They are tested against scipy.optimize.nnls / brentq / minimize_scalar (tests/analysis/test_small_solvers.py).
+They are tested against scipy.optimize.brentq / minimize_scalar (tests/analysis/test_small_solvers.py).
 
-Public: :func:`nnls`, :func:`root_bracket`, :func:`minimize_bounded`.
+Public: :func:`root_bracket`, :func:`minimize_bounded`.
 """
 
 from __future__ import annotations
@@ -22,50 +21,6 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-
-
-def nnls(a: np.ndarray, b: np.ndarray, max_iter: int | None = None) -> tuple[np.ndarray, float]:
-    """argmin ||a x - b||_2 subject to x >= 0; returns (x (n,), residual norm) as scipy's nnls.
-
-    ``a`` (m, n), ``b`` (m,), any consistent units.
-    """
-    a = np.asarray(a, float)
-    b = np.asarray(b, float)
-    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):  # an overflowed weighting: no solution
-        return np.full(a.shape[1], np.nan), float("nan")
-    # columns scaled to unit peak (x >= 0 is invariant under positive column scales): the noise
-    # bases span 20 decades, which would otherwise swamp the gradient test
-    scale = np.abs(a).max(axis=0, initial=0.0)
-    scale[scale == 0] = 1.0
-    an = a / scale
-    n = a.shape[1]
-    x = np.zeros(n)
-    passive = np.zeros(n, bool)
-    b_scale = float(np.abs(b).max(initial=0.0))
-    if b_scale == 0.0:
-        return x, 0.0
-    b = b / b_scale  # the problem is homogeneous in b: solved at unit scale, no overflow
-    tol = 10.0 * np.finfo(float).eps * max(a.shape) ** 2
-    w = an.T @ b
-    limit = max_iter if max_iter is not None else 3 * n
-    for _ in range(limit):
-        if passive.all() or not np.any(w[~passive] > tol):
-            break
-        passive[int(np.argmax(np.where(passive, -np.inf, w)))] = True
-        while True:
-            z = np.zeros(n)
-            z[passive] = np.linalg.lstsq(an[:, passive], b, rcond=None)[0]
-            if np.all(z[passive] > 0):
-                break
-            neg = np.flatnonzero(passive & (z <= 0))
-            ratios = x[neg] / (x[neg] - z[neg])
-            x = x + float(ratios.min()) * (z - x)
-            passive &= x > 0
-            passive[neg[int(np.argmin(ratios))]] = False  # the blocking variable leaves (no rounding loop)
-            x[~passive] = 0.0
-        x = z
-        w = an.T @ (b - an @ x)
-    return x / scale * b_scale, float(np.linalg.norm(an @ x - b)) * b_scale
 
 
 def root_bracket(f: Callable[[float], float], lo: float, hi: float, xtol: float = 1e-12, rtol: float = 1e-10,
