@@ -167,10 +167,17 @@ class CalibrationSet:
         """Write the set atomically to ``path`` (a temp file renamed into place)."""
         return atomic_write_text(Path(path), self.to_json())
 
+    def name_problems(self, source: str | None = None) -> list[str]:
+        """The id / serial / model rules this set breaks (:func:`name_problems`); empty for a set that
+        could be written today."""
+        return name_problems(self.id, self.unit.serial, self.unit.model, source or f"set {self.id}")
+
     @classmethod
-    def from_dict(cls, data: Mapping, source: str = "<dict>") -> CalibrationSet:
-        """Build a set from its JSON dict, validating it; ``source`` names it in errors."""
-        validate(data, source=source)
+    def from_dict(cls, data: Mapping, source: str = "<dict>", names: bool = True) -> CalibrationSet:
+        """Build a set from its JSON dict, validating it; ``source`` names it in errors. ``names=False``
+        reads a set stored before the id / serial / model rules (:meth:`name_problems` says which it
+        breaks); writing or exporting it is still refused."""
+        validate(data, source=source, names=names)
         triads = {name: _triad_from_dict(name, data[name], source) for name in TRIADS if name in data}
         prov = data["provenance"]
         return cls(
@@ -189,13 +196,13 @@ class CalibrationSet:
         )
 
     @classmethod
-    def from_json(cls, text: str, source: str = "<json>") -> CalibrationSet:
-        """Parse and validate JSON text."""
+    def from_json(cls, text: str, source: str = "<json>", names: bool = True) -> CalibrationSet:
+        """Parse and validate JSON text (``names`` as for :meth:`from_dict`)."""
         try:
             data = json.loads(text)
         except json.JSONDecodeError as exc:
             raise CalibrationFormatError(f"{source}: not valid JSON (line {exc.lineno}: {exc.msg})") from None
-        return cls.from_dict(data, source=source)
+        return cls.from_dict(data, source=source, names=names)
 
     @classmethod
     def load(cls, path: str | Path) -> CalibrationSet:
@@ -314,8 +321,25 @@ def _check_finite(data, path: str, source: str) -> None:
         raise CalibrationFormatError(f"{source}: {path}: NaN or infinite value")
 
 
-def validate(data: Mapping, source: str = "<dict>") -> None:
-    """Validate a calibration dict against the schema; raise a one-line error naming the field."""
+def name_problems(set_id, serial, model, source: str) -> list[str]:
+    """One line per rule broken by a set's ``id`` and ``unit.serial`` (1-64 of ``A-Z a-z 0-9 . _ + -``)
+    and ``unit.model`` (one printable line): they name store keys and go verbatim into exports (a C
+    header, parameter files), where a line break or ``*/`` could add a #define or a parameter line."""
+    out = []
+    for check, value, key in ((safe_component, set_id, "id"), (safe_component, serial, "unit.serial"),
+                              (plain_line, model, "unit.model")):
+        try:
+            check(value, f"{source}: {key}", CalibrationFormatError)
+        except CalibrationFormatError as exc:
+            out.append(str(exc))
+    return out
+
+
+def validate(data: Mapping, source: str = "<dict>", names: bool = True) -> None:
+    """Validate a calibration dict against the schema; raise a one-line error naming the field.
+
+    ``names=False`` leaves out the id / serial / model rules (:func:`name_problems`), to read a set
+    stored before them."""
     if not isinstance(data, Mapping):
         raise CalibrationFormatError(f"{source}: top level must be a JSON object")
     fmt = data.get("format")
@@ -333,11 +357,9 @@ def validate(data: Mapping, source: str = "<dict>") -> None:
         err = errors[0]
         where = ".".join(str(p) for p in err.absolute_path) or "(top level)"
         raise CalibrationFormatError(f"{source}: {where}: {err.message[:200]}")
-    # text that names store keys and goes verbatim into exports (a C header, parameter files): a serial or
-    # id with a line break or '*/' could add a #define or a parameter line to the file an autopilot loads
-    safe_component(data["id"], f"{source}: id", CalibrationFormatError)
-    safe_component(data["unit"]["serial"], f"{source}: unit.serial", CalibrationFormatError)
-    plain_line(data["unit"]["model"], f"{source}: unit.model", CalibrationFormatError)
+    problems = name_problems(data["id"], data["unit"]["serial"], data["unit"]["model"], source) if names else []
+    if problems:
+        raise CalibrationFormatError(problems[0])
 
 
 def merge(*sets: CalibrationSet) -> CalibrationSet:

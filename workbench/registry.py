@@ -139,6 +139,15 @@ def exporters() -> dict[str, ModuleType]:
     return {m.FORMAT: m for m in _modules("workbench.exports") if hasattr(m, "FORMAT")}
 
 
+def export_set(calset, fmt: str) -> Export:
+    """``calset`` (a :class:`workbench.calset.CalibrationSet`) in export format ``fmt``. A set breaking the
+    id / serial / model rules (one stored before them) is refused, one line: those go verbatim into the file."""
+    problems = calset.name_problems()
+    if problems:
+        raise ExportError(f"{problems[0]}; export refused (a set stored before this rule is readable, never exported)")
+    return exporter(fmt).export(calset)
+
+
 def exporter(fmt: str) -> ModuleType:
     """The export module for ``fmt``; raises ExportError naming the known formats."""
     ex = exporters()

@@ -61,10 +61,12 @@ def _now() -> str:
 
 
 def _set_from_row(set_id: str, body: str) -> CalibrationSet:
-    """The calibration set a stored row (id, canonical JSON body) holds."""
+    """The calibration set a stored row (id, canonical JSON body) holds; a set stored before the id /
+    serial / model rules is read (its ``name_problems()`` say what it breaks; storing or exporting it again
+    is refused)."""
     from workbench.calset import CalibrationSet
 
-    return CalibrationSet.from_json(body, source=f"store set {set_id}")
+    return CalibrationSet.from_json(body, source=f"store set {set_id}", names=False)
 
 
 def _next_version(db: Connection, serial: str) -> int:

@@ -60,7 +60,7 @@ if result is not None:
         fmt = st.selectbox("Format", ["px4", "ardupilot", "c-header", "json"], key="thermal.export")
         with ui.guarded("export", catch_all=True):
             mod = registry.exporter(fmt)
-            exp = mod.export(result.calibration)
+            exp = registry.export_set(result.calibration, fmt)
             for line in exp.dropped:
                 st.warning(f"dropped: {line}")
             st.download_button(f"Download {mod.SUFFIX}", exp.text, file_name=f"thermal{mod.SUFFIX}")

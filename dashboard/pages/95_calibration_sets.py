@@ -167,7 +167,7 @@ with tab_show:
     for i, (fmt, mod) in enumerate(sorted(exporters.items())):
         with cols[i % len(cols)]:
             try:
-                out = mod.export(calset)
+                out = registry.export_set(calset, fmt)  # a set stored before the serial rule: refused
             except ExportError as exc:  # the format cannot express this set: say why, not an alarm
                 st.warning(f"{fmt} ({mod.SUFFIX}) not available: {exc}")
                 continue

@@ -123,3 +123,47 @@ def test_sets_show_and_diff_fit_80_columns(db, tmp_path, capsys, monkeypatch):
     diff = capsys.readouterr().out
     assert max(len(line) for line in diff.splitlines()) <= 80
     assert "not observed in B" in diff and "not observed in A" in diff and "+7.07" in diff  # 1e-5 / sqrt(2) / 1e-6
+
+
+def _store_before_the_serial_rule(db: str, serial: str = "SN 0042/a") -> str:
+    """A store holding a set whose serial breaks today's rule (written before it): the row edited in SQL."""
+    import sqlite3
+
+    s = a_set(bias=0.01)
+    Store(db).add_set(s)
+    con = sqlite3.connect(db.removeprefix("sqlite:///"))
+    body = json.loads(con.execute("select body from calibration_sets").fetchone()[0])
+    body["unit"]["serial"] = serial
+    con.execute("update calibration_sets set body = ?, serial = ?", (json.dumps(body), serial))
+    con.execute("update units set serial = ?", (serial,))
+    con.commit()
+    con.close()
+    return s.id
+
+
+def test_a_store_from_before_the_serial_rule_stays_readable(db, tmp_path, capsys):
+    set_id = _store_before_the_serial_rule(db)
+    for args in (["sets", "list"], ["sets", "show", set_id[:8]], ["sets", "diff", set_id, set_id]):
+        assert main(args) == 0, args  # were all 'unit.serial ...: use 1-64 letters' refusals (show, diff)
+        captured = capsys.readouterr()
+        assert "SN 0042/a" in captured.out or args[1] == "diff"
+        (warning,) = set(captured.err.strip().splitlines())  # diff reads it twice (A and B)
+        assert warning.startswith(f"warning: store set {set_id}: unit.serial 'SN 0042/a'") and "readable" in warning
+    assert Store(db).get_set(set_id).unit.serial == "SN 0042/a"
+
+
+@pytest.mark.parametrize("args", [
+    ["sets", "export", "ID", "--format", "c-header"],  # the serial goes verbatim into a C comment and guard
+    ["sets", "export", "ID", "--format", "json"],
+    ["sets", "merge", "ID"],  # storing a new set with that serial
+    ["sets", "merge", "ID", "--no-store", "--out", "OUT"],
+])
+def test_exporting_or_storing_a_set_with_such_a_serial_is_one_line(db, tmp_path, capsys, args):
+    set_id = _store_before_the_serial_rule(db)
+    out_file = tmp_path / "merged.json"
+    args = [set_id if a == "ID" else str(out_file) if a == "OUT" else a for a in args]
+    assert main(args) == 2
+    captured = capsys.readouterr()
+    (line,) = captured.err.strip().splitlines()
+    assert line.startswith("error: set ") and "unit.serial 'SN 0042/a': use 1-64 letters" in line, line
+    assert captured.out == "" and not out_file.exists() and len(Store(db).list_sets()) == 1

@@ -10,8 +10,8 @@ import typer
 from rich import box
 from rich.table import Table
 
-from workbench.cli import out, styled
-from workbench.registry import exporter, exporters
+from workbench.cli import err, out, styled
+from workbench.registry import export_set, exporter, exporters
 
 if TYPE_CHECKING:  # the set format, its coefficients and the store load when a command runs, not with the CLI
     from workbench.calset import CalibrationSet
@@ -19,8 +19,10 @@ if TYPE_CHECKING:  # the set format, its coefficients and the store load when a 
 sets_app = typer.Typer(no_args_is_help=True, help="Calibration sets: list, show, diff, export, approve, merge.")
 
 
-def load_set_ref(ref: str) -> CalibrationSet:
-    """A set from a calibration JSON file path or a stored set's id (or unique id prefix)."""
+def load_set_ref(ref: str, warn: bool = True) -> CalibrationSet:
+    """A set from a calibration JSON file path or a stored set's id (or unique id prefix); a stored set
+    breaking the id / serial / model rules (stored before them) is read, with a warning naming it unless
+    not ``warn`` (a command about to refuse it says so in its one error line)."""
     from workbench.calset import CalibrationSet
     from workbench.errors import CalibrationFormatError
     from workbench.store import Store
@@ -30,7 +32,15 @@ def load_set_ref(ref: str) -> CalibrationSet:
     p = Path(ref)
     if p.suffix in (".json", ".yaml", ".yml") or p.exists():
         return CalibrationSet.load(p)
-    return Store().get_set(ref)
+    cal = Store().get_set(ref)
+    for problem in cal.name_problems(f"store set {cal.id}") if warn else []:
+        _old_name_warning(problem)
+    return cal
+
+
+def _old_name_warning(problem: str) -> None:
+    err.print(styled("warning:", "yellow", f" {problem} (stored before this rule: readable; exporting it or "
+                                           "storing a set with it is refused)"), highlight=False, soft_wrap=True)
 
 
 @sets_app.command("list")
@@ -49,7 +59,11 @@ def list_sets(unit: str = typer.Option(None, "--unit", help="Only this unit seri
         raise typer.BadParameter(f"--format {format!r}: expected table or json")
     if not infos:
         out.print(f"no calibration sets {'' if unit is None else f'of unit {unit} '}in {url}")
+    from workbench.calset import name_problems
+
     for i in infos:
+        for problem in name_problems(i.id, i.serial, i.model, f"store set {i.id}"):
+            _old_name_warning(problem)
         unit = f"{i.serial} ({i.model})" if i.model and i.model not in i.serial else i.serial
         out.print(styled(i.id[:8], "bold", f"  {unit}  v{i.version}  {i.created[:16].replace('T', ' ')} UTC  "
                                             f"approved by {i.approved_by or '—'}"))
@@ -153,8 +167,8 @@ def export(ref: str = typer.Argument(..., help="Set id (or prefix) or calibratio
     from workbench.calset import atomic_write_text
     from workbench.plausibility import gate
 
-    ex = exporter(format)
-    result = ex.export(gate(load_set_ref(ref), force=force, what="export"))
+    exporter(format)  # an unknown format is refused before the set is read
+    result = export_set(gate(load_set_ref(ref, warn=False), force=force, what="export"), format)
     for item in result.dropped:
         out.print(styled("dropped:", "yellow", f" {item}"), highlight=False)
     if out_file is None:
@@ -193,7 +207,8 @@ def merge_cmd(refs: list[str] = typer.Argument(..., help="Partial sets of one un
     from workbench.plausibility import gate
     from workbench.store import Store
 
-    merged = gate(merge(*[load_set_ref(r) for r in refs]), force=force, what="merged calibration")
+    writes = out_file is not None or not no_store  # then a set breaking the serial rule is refused in one line
+    merged = gate(merge(*[load_set_ref(r, warn=not writes) for r in refs]), force=force, what="merged calibration")
     if out_file is not None:
         merged.save(out_file)
     if not no_store:
