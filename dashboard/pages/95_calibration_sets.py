@@ -16,7 +16,7 @@ import streamlit as st
 
 from dashboard import auth, ui
 from workbench import coefficients, registry
-from workbench.diff import NOT_OBSERVED, NOT_OBSERVED_A, NOT_OBSERVED_B, diff_sets
+from workbench.diff import NOT_COMPARABLE, NOT_OBSERVED, NOT_OBSERVED_A, NOT_OBSERVED_B, diff_sets
 from workbench.errors import ExportError, WorkbenchError
 
 TITLE = "Calibration sets"
@@ -43,9 +43,10 @@ def diff_table(old, new) -> pd.DataFrame:
     """Rows of ``diff_sets(old, new)`` in lab units, with their state (changed / not observed in A or B)."""
     rows = []
     for r in diff_sets(old, new):
-        if r.field == "(triad)":
-            rows.append({"triad": r.triad, "field": r.field, "index": "", "coefficient": "(whole triad)", "state": r.state, "old": "", "new": "",
-                         "σ": "", "unit": "", "change (σ)": np.nan})
+        if r.field == "(triad)" or r.state == NOT_COMPARABLE:
+            rows.append({"triad": r.triad, "field": r.field, "index": "",
+                         "coefficient": "(whole triad)" if r.field == "(triad)" else r.note, "state": r.state,
+                         "old": "", "new": "", "σ": "", "unit": "", "change (σ)": np.nan})
             continue
         label, f = coefficients.element_unit(r.triad, r.field, r.index)
         rows.append({"triad": r.triad, "field": r.field, "index": str(list(r.index)),

@@ -167,3 +167,14 @@ def test_exporting_or_storing_a_set_with_such_a_serial_is_one_line(db, tmp_path,
     (line,) = captured.err.strip().splitlines()
     assert line.startswith("error: set ") and "unit.serial 'SN 0042/a': use 1-64 letters" in line, line
     assert captured.out == "" and not out_file.exists() and len(Store(db).list_sets()) == 1
+
+
+def test_sets_diff_of_two_models_is_one_line(db, tmp_path, capsys):
+    from workbench.calset import CalibrationSet, Unit
+
+    a = a_set(bias=0.01)
+    b = CalibrationSet(Unit("U9", "other-grade"), a.triads)
+    pa, pb = a.save(tmp_path / "a.json"), b.save(tmp_path / "b.json")
+    assert main(["sets", "diff", str(pa), str(pb)]) == 2  # was a silent table of 0 differences
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert "is a 'm' (U1), B" in line and "a 'other-grade' (U9): different models" in line

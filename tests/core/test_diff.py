@@ -34,3 +34,40 @@ def test_neither_observed_and_triad_only_in_one_set():
     rows = diff_sets(a, b)
     assert [(r.field, r.state) for r in rows] == [("bias", NOT_OBSERVED), ("(triad)", ONLY_B)]
     assert all(np.isnan(r.change_in_sigma) for r in rows)
+
+
+def test_sets_of_different_models_or_without_a_common_sensor_are_refused():
+    import pytest
+
+    from workbench.errors import CalibrationFormatError
+
+    a = CalibrationSet(Unit("U1", "hg1700"), {"gyro": TriadCalibration(TriadModel(bias=[1e-5, 0, 0]))})
+    b = CalibrationSet(Unit("U2", "industrial_mems"), {"gyro": TriadCalibration(TriadModel(bias=[2e-5, 0, 0]))})
+    with pytest.raises(CalibrationFormatError, match=r"A .* is a 'hg1700' \(U1\), B .* a 'industrial_mems' \(U2\)"):
+        diff_sets(a, b)
+    mag = CalibrationSet(Unit("U1", "hg1700"), {"mag": TriadCalibration(TriadModel(bias=[1.0, 2.0, 3.0]))})
+    with pytest.raises(CalibrationFormatError, match="holds gyro, B .* holds mag: no sensor in common"):
+        diff_sets(a, mag)
+    same_model = CalibrationSet(Unit("U3", "hg1700"), {"gyro": TriadCalibration(TriadModel(bias=[2e-5, 0, 0]))})
+    assert len(diff_sets(a, same_model)) == 1  # two units of one model: compared
+
+
+def test_thermal_polynomials_about_different_references_are_not_comparable():
+    from workbench.diff import NOT_COMPARABLE
+    from workbench.model import ThermalModel
+
+    def thermal_set(t_ref, bias_poly):
+        poly = np.asarray(bias_poly, float)
+        model = TriadModel(bias=[1e-5, 0, 0], thermal=ThermalModel(t_ref, poly, np.zeros((3, 0))))
+        return CalibrationSet(Unit("U1", "m"), {"gyro": TriadCalibration(model, {"thermal.bias_poly": np.full(poly.shape, 1e-7)})})
+
+    # about 20 and 25 °C, the same slope: the c0 columns differ by 5 °C x slope, not by a change of the unit
+    a, b = thermal_set(20.0, [[0, 1e-6]] * 3), thermal_set(25.0, [[5e-6, 1e-6]] * 3)
+    (row,) = [r for r in diff_sets(a, b) if r.field.startswith("thermal.")]
+    assert row.state == NOT_COMPARABLE and "A 20 °C, B 25 °C" in row.note and np.isnan(row.change_in_sigma)
+    c = thermal_set(20.0, [[0, 1e-6, 1e-8]] * 3)  # a quadratic against a line
+    (row,) = [r for r in diff_sets(a, c) if r.field.startswith("thermal.")]
+    assert row.state == NOT_COMPARABLE and "different orders (A 1, B 2)" in row.note
+    same = [r for r in diff_sets(a, thermal_set(20.0, [[0, 1.2e-6]] * 3)) if r.field.startswith("thermal.")]
+    assert {r.state for r in same} == {CHANGED} and len(same) == 3  # one slope per axis, 2e-7 / (1e-7 √2) σ
+    assert np.allclose([r.change_in_sigma for r in same], 2e-7 / np.hypot(1e-7, 1e-7))

@@ -129,7 +129,8 @@ def diff(old: str = typer.Argument(..., help="Older set: id or JSON file."),
          limit: int = typer.Option(40, help="Show at most this many rows.")) -> None:
     """Coefficient-by-coefficient changes, in units of their combined sigma."""
     from workbench.coefficients import element_name, element_unit, value_text
-    from workbench.diff import NOT_OBSERVED, NOT_OBSERVED_A, NOT_OBSERVED_B, ONLY_A, ONLY_B, diff_sets
+    from workbench.diff import (NOT_COMPARABLE, NOT_OBSERVED, NOT_OBSERVED_A, NOT_OBSERVED_B, ONLY_A, ONLY_B,
+                                diff_sets)
 
     a, b = load_set_ref(old), load_set_ref(new)
     rows = diff_sets(a, b)
@@ -139,6 +140,9 @@ def diff(old: str = typer.Argument(..., help="Older set: id or JSON file."),
             t.add_row(f"{r.triad} (whole triad)", "absent" if r.state == ONLY_B else "present",
                       "absent" if r.state == ONLY_A else "present", "", r.state)
             continue
+        if r.state == NOT_COMPARABLE:
+            t.add_row(f"{r.triad} {r.field}", "", "", "", f"{r.state}: {r.note}")
+            continue
         label, f = element_unit(r.triad, r.field, r.index)
         old_text = "not observed" if r.state in (NOT_OBSERVED_A, NOT_OBSERVED) else value_text(r.old / f)
         new_text = "not observed" if r.state in (NOT_OBSERVED_B, NOT_OBSERVED) else value_text(r.new / f)
@@ -147,7 +151,8 @@ def diff(old: str = typer.Argument(..., help="Older set: id or JSON file."),
                   style="bold red" if r.observed_in_both and abs(r.change_in_sigma) > 3 else "")
     n_both = sum(r.observed_in_both for r in rows)
     out.print(f"{len(rows)} coefficient(s) differ between A = {a.id[:8]} and B = {b.id[:8]}: {n_both} observed in "
-              f"both (change in σ = (B − A) / √(σ_A² + σ_B²)), {len(rows) - n_both} not observed in one of them")
+              f"both (change in σ = (B − A) / √(σ_A² + σ_B²)), {len(rows) - n_both} not observed in one of them "
+              "or not comparable; values in the lab units of the unit column")
     out.print(t)
     if len(rows) > limit:
         out.print(f"… {len(rows) - limit} more (--limit)")
