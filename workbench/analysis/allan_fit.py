@@ -124,10 +124,14 @@ def _sawtooth_correlation(x: np.ndarray) -> np.ndarray:
     (a = 2 pi^2 x) is exact to ~1e-9 below a = 0.5, the series is cut at n = 24 above it."""
     a = 2.0 * np.pi ** 2 * np.maximum(np.asarray(x, float), 0.0)
     small = a < 0.5
-    n = np.arange(1, 25, dtype=float)[:, None]
-    series = np.sum(np.exp(-(n ** 2) * np.where(small, 1.0, a).ravel()[None, :]) / n ** 2, axis=0).reshape(a.shape)
-    total = np.where(small, np.pi ** 2 / 6.0 - np.sqrt(np.pi * a) + a / 2.0, series)
+    total = np.empty_like(a)
+    total[small] = np.pi ** 2 / 6.0 - np.sqrt(np.pi * a[small]) + a[small] / 2.0
+    big = a[~small]
+    total[~small] = np.sum(np.exp(-_N_SQUARED * big[None, :]) / _N_SQUARED, axis=0)
     return 6.0 / np.pi ** 2 * total
+
+
+_N_SQUARED = np.arange(1, 25, dtype=float)[:, None] ** 2  # the terms n^2 of the sawtooth series
 
 
 def quantization_shape(tau: np.ndarray, ratio: float, slow: SlowRate | None = None, q2: float = 0.0) -> np.ndarray:
@@ -147,8 +151,8 @@ def quantization_shape(tau: np.ndarray, ratio: float, slow: SlowRate | None = No
         drift = slow.mean_square(t) * t ** 2 / q2 if slow is not None and q2 > 0 else 0.0
         return (ratio * t + drift) / 12.0
 
-    return np.clip(1.0 - 4.0 / 3.0 * _sawtooth_correlation(x(tau)) + _sawtooth_correlation(x(2.0 * tau)) / 3.0,
-                   0.0, 1.0)
+    rho = _sawtooth_correlation(np.stack([x(tau), x(2.0 * tau)]))
+    return np.clip(1.0 - 4.0 / 3.0 * rho[0] + rho[1] / 3.0, 0.0, 1.0)
 
 
 @dataclass(frozen=True)
@@ -230,6 +234,7 @@ class _Family:
         n = int(np.ceil(np.log10(_X_RANGE[1] / _X_RANGE[0]) * _SHAPES_PER_DECADE)) + 1
         self.log_r = np.linspace(np.log(_X_RANGE[0] * scale), np.log(self.r_top), n)
         self._columns: dict[float, np.ndarray] = {}
+        self._held_parts: dict[tuple, tuple[tuple[int, ...], np.ndarray, np.ndarray]] = {}
         self.slow: SlowRate | None = None
         self.q2_ref = 0.0
 
@@ -251,8 +256,21 @@ class _Family:
         """
         from workbench.analysis.allan_fit_kernels import irls
 
-        return irls(np.ascontiguousarray(cols, dtype=float), np.asarray(offset, float), np.asarray(start, float),
-                    self.avar, self.edf, float(cutoff), _IRLS_ITER, _IRLS_STEP, CORRELATION)
+        return irls(cols, np.ascontiguousarray(offset), np.ascontiguousarray(start), self.avar, self.edf, float(cutoff), _IRLS_ITER, _IRLS_STEP, CORRELATION)
+
+    def _held(self, fixed: dict[int, float]) -> tuple[tuple[int, ...], np.ndarray, np.ndarray]:
+        """Terms 2-4 under ``fixed``: (the free ones, their IEEE columns (K, f), the AVAR (K,) of the held ones),
+        kept for the next calls (a search fits a dozen shapes with the same terms held)."""
+        key = tuple((j, fixed[j]) for j in (2, 3, 4) if j in fixed)
+        if key not in self._held_parts:
+            if len(self._held_parts) > 64:
+                self._held_parts.clear()
+            offset = np.zeros(len(self.tau))
+            for j, value in key:
+                offset = offset + value * self.plain[:, j]
+            free = tuple(j for j in (2, 3, 4) if j not in fixed)
+            self._held_parts[key] = (free, self.plain[:, list(free)], offset)
+        return self._held_parts[key]
 
     def _linear(self, q_col: np.ndarray | None, q_fixed: float | None, n_col: np.ndarray | None,
                 n_fixed: float | None, fixed: dict[int, float], start: np.ndarray,
@@ -260,20 +278,16 @@ class _Family:
         """Fit with the quantization and white parts given as a column each (None: absent) or a fixed
         coefficient, and terms 2-4 free unless in ``fixed``: (q, n, deviance, coefficients of 2-4, model);
         ``cutoff`` as :meth:`_irls`."""
-        cols, offset = [], np.zeros(len(self.tau))
+        lead = [col for col, value in ((q_col, q_fixed), (n_col, n_fixed)) if col is not None and value is None]
+        free, free_cols, offset = self._held(fixed)
         for col, value in ((q_col, q_fixed), (n_col, n_fixed)):
-            if col is not None:
-                if value is None:
-                    cols.append(col)
-                else:
-                    offset = offset + value * col
-        free = [j for j in (2, 3, 4) if j not in fixed]
-        for j in (2, 3, 4):
-            if j in fixed:
-                offset = offset + fixed[j] * self.plain[:, j]
-        cols += [self.plain[:, j] for j in free]
-        c, model, dev = self._irls(np.column_stack(cols) if cols else np.zeros((len(self.tau), 0)), offset, start,
-                                     cutoff)
+            if col is not None and value is not None:
+                offset = value * col + offset
+        cols = np.empty((len(self.tau), len(lead) + len(free)))
+        for i, col in enumerate(lead):
+            cols[:, i] = col
+        cols[:, len(lead):] = free_cols
+        c, model, dev = self._irls(cols, offset, start, cutoff)
         it = iter(c)
         q = (next(it) if q_fixed is None else q_fixed) if q_col is not None else 0.0
         n = (next(it) if n_fixed is None else n_fixed) if n_col is not None else 0.0
@@ -327,8 +341,10 @@ class _Family:
         fits = [self.ieee(fixed, start, cutoff), self.no_white(fixed, start, cutoff)]
         if fixed.get(0, 1.0) > 0 and fixed.get(1, 1.0) > 0 and not (0 in fixed and 1 in fixed):
             grid = []
+            lowest = min(f.dev for f in fits)
             for lr in self.log_r:
-                grid.append(self.shaped(lr, fixed, start, min(cutoff, min(f.dev for f in fits + grid))))
+                grid.append(self.shaped(lr, fixed, start, min(cutoff, lowest)))
+                lowest = min(lowest, grid[-1].dev)
             i = int(np.argmin([f.dev for f in grid]))
             fits += grid
             lo, hi = self.log_r[max(i - 1, 0)], self.log_r[min(i + 1, len(self.log_r) - 1)]
