@@ -12,8 +12,9 @@ the raw samples and on the samples compensated with the set (:func:`workbench.na
 the process noise from the set's noise block in both runs. With turns, one alignment runs
 through the position's hold and its turns: zero-velocity (and ZARUPT at the holds) updates,
 the mechanisation following the turns (:func:`workbench.nav.zupt.align` with ``still``).
-``heading_source``: ``external`` (default), or ``gyrocompass`` (no external heading: the
-initial heading from the Earth rate; needs a ``level_s`` long enough to gyrocompass);
+``heading_source``: ``external`` (default), or ``gyrocompass`` (no external heading: the heading
+from the Earth rate; the error model is linearised at the closed-form gyrocompass through every hold,
+:func:`workbench.nav.gyrocompass.indexed_gyrocompass`, so a wide or missing heading stays consistent);
 ``attitude_hold`` holds all three angles at the frozen solution (thesis eq. 3.57) instead of the
 heading only (positions without turns). The external heading, as in the thesis: the table's
 (``table_zero_azimuth_deg`` overrides the site's, e.g. with a
@@ -30,8 +31,9 @@ velocity), ``convergence_time_s`` (worst; null = never: the time after which the
 drifts no more than 5x the white sensor noise over each correction interval, the thesis'
 "indicates itself to be at rest and non-rotating"), ``gyro_bias_error`` (rad/s per axis, of
 the position with the largest error) and ``positions`` (per position details, with ``turns``
-and ``initial_heading_error_deg``: the heading the alignment started from, gyrocompass or
-external, minus the table's; ``attitude_sigma_deg``; ``tilt_observed`` and ``level_sigma_deg``: at
+and ``initial_heading_error_deg``: the reference heading the alignment started from (the external
+one while it is held, else the closed-form gyrocompass weighted with the external heading) minus the
+table's; ``attitude_sigma_deg``; ``tilt_observed`` and ``level_sigma_deg``: at
 rest the tilt and the horizontal accelerometer bias are one quantity, so the roll / pitch sigma
 stays at that bias's prior / g while the level against the accelerometers is known to
 ``level_sigma_deg``, said in the warnings; the turns separate them); ``heading_source``.

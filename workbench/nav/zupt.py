@@ -38,10 +38,21 @@ Refinements over the thesis, for honest uncertainties:
   the model's ``-C b_a`` as if the table had turned, the filter took that for information on the
   horizontal accelerometer bias and tilt, and pitch / x accel bias came out 1.5-1.6x optimistic
   (6-12x with a small true gyro bias; 20 seeds, docs/navigation.md);
-- a gyrocompass heading carries the levelled tilt: the level-frame east rate vanishes at
-  ``dtheta_D = -tan(lat) dtheta_N`` (the tilt leaks the vertical Earth rate), in the initial covariance;
-- the external heading's own uncertainty cannot be reduced by the filter and is added to the
-  reported heading sigma;
+- a wide initial heading (an external heading of 17° 1-sigma or more, or none: the gyrocompass of a
+  3 °/h unit is 15° off) breaks a first-order heading error model: early on the corrections swing the
+  heading by tens of degrees and the Jacobians follow them (error / sigma 1.3-1.6 at 17°, 2-25 at
+  30-180°, docs/navigation.md). Coarse, then fine: unless the heading is held, the error model is
+  linearised at a *reference* heading, the closed-form gyrocompass through the record's holds
+  (:func:`workbench.nav.gyrocompass.indexed_gyrocompass`: with turns good to about the white-noise
+  limit, 2° here; at rest bias-limited) weighted with the external heading's prior. The mechanisation
+  starts there and the heading error about it stays in the state (never fed back): the estimate may
+  swing, the model is linear in the true error, which is the reference's. The filter's heading prior is
+  the external heading as given (its mean the heading error about the reference), or ``NO_HEADING_SIGMA``
+  with none; the levelling window's mean gyro output is a ZARUPT-like measurement (the gyrocompass's
+  data; its rows carry the levelled tilt, which leaks the vertical Earth rate into the horizontal, and
+  the gyro bias). The reference is data, but only a linearisation point: the data enter the filter once;
+- while the heading is held, the external heading's own uncertainty cannot be reduced by the filter and
+  is added to the reported heading sigma;
 - the zero angular rate update's noise is the mean of the gyro white noise over its window, which
   the attitude (and through the tilt the velocity and position) has just integrated: its covariance
   with the error state (:func:`_zarupt_cross`) enters the update, which otherwise counts the gyro
@@ -63,6 +74,8 @@ from workbench.earth import earth_rate_ned, gravity_ned
 from workbench.errors import AnalysisError
 from workbench.nav.compensate import ImuSamples, ProcessNoise
 from workbench.nav import nav_results
+from workbench.angles import wrap_pi
+from workbench.nav.gyrocompass import indexed_gyrocompass
 from workbench.nav.strapdown import (BlockPropagator, coarse_level, euler_rph, from_rph, integrated_noise_cross,
                                      sequential_update, skew, van_loan, with_previous)
 
@@ -70,11 +83,9 @@ N_STATES = 15
 P, V, A, BA, BG = (slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), slice(12, 15))
 MEASUREMENTS = ("position", "velocity", "attitude", "heading", "zarupt")
 HEADING_SOURCES = ("external", "gyrocompass")
-# rad: initial heading 1-sigma above which the ZARUPT through turns is flagged (the error model is linear in
-# the heading error). Measured over 20 seeds (HG1700, 60 s holds, true biases and heading drawn from the
-# priors, docs/navigation.md) with an external heading prior: rms error / sigma of roll / pitch / x accel bias /
-# y accel bias 1.45 / 1.33 / 1.28 / 1.56 at 17°, 1.02 / 0.93 / 0.93 / 1.06 at 10°; ZUPT alone at 17° within 1.23.
-ZARUPT_TURN_HEADING_SIGMA = np.radians(12.0)
+# rad: the heading error's prior about the reference when no heading is given (wider than the circle's
+# uniform 104°: the data decide)
+NO_HEADING_SIGMA = np.pi
 
 
 @dataclass(frozen=True)
@@ -92,9 +103,9 @@ class ZuptConfig:
     taken unscaled at the next one, since the unit is known to be at rest (without this, one
     knock would leave the mechanised velocity beyond c1 for good and the filter would diverge).
     ``heading_source``: ``external`` (the ``heading`` argument of :func:`align`, 1-sigma
-    ``heading_sigma``) or ``gyrocompass`` (no external heading: the initial heading from the
-    levelled mean gyro output of the levelling window, its error correlated with the gyro bias,
-    paper 001 eq. 48; the heading is then only what the filter observes).
+    ``heading_sigma``, any width up to none at all, 180°) or ``gyrocompass`` (no external heading: the
+    heading is only what the filter observes from the Earth rate, paper 001 eq. 48, through the turns;
+    module docstring).
     """
 
     level_s: float = 5.0
@@ -142,8 +153,10 @@ class ZuptResult:
     zero-velocity update observes at rest; the tilt itself is known only to the accel-bias prior / g
     until the table turns, see :attr:`tilt_observed`); ``weights``
     (E, m) the gain scale factors of eq. 47; ``attitude`` the body-to-NED Rotation (E,);
-    ``initial_rph`` the frozen roll, pitch, heading; ``t_start`` the EKF start time, s;
-    ``initial_heading_sigma`` rad the 1-sigma of the heading the filter starts from;
+    ``initial_rph`` the frozen roll and pitch and the reference heading the mechanisation starts from (the
+    external heading while it is held, else the closed-form gyrocompass weighted with an external heading);
+    ``t_start`` the EKF start time, s; ``reference_sigma`` rad the closed-form gyrocompass's linearised
+    1-sigma (NaN while the heading is held);
     ``drift_noise`` (m/s, rad) the 1-sigma norms of the velocity and attitude that white
     accelerometer and gyro noise alone accumulate over one interval.
     """
@@ -166,7 +179,7 @@ class ZuptResult:
     measurements: tuple[str, ...]
     drift_noise: tuple[float, float]
     level_sigma: np.ndarray
-    initial_heading_sigma: float
+    reference_sigma: float
 
     @property
     def tilt_observed(self) -> bool:
@@ -183,12 +196,6 @@ class ZuptResult:
             notes.append(f"roll/pitch not observed apart from the horizontal accelerometer bias (the unit does not "
                          f"turn): their 1-sigma {tilt:.2g}° is that bias's prior / g; the level against the "
                          f"accelerometers is known to {level:.2g}°")
-        turning = bool(np.isnan(self.drift_attitude).any())
-        if turning and "zarupt" in self.measurements and self.initial_heading_sigma > ZARUPT_TURN_HEADING_SIGMA:
-            notes.append(f"ZARUPT through turns from an initial heading 1-sigma of "
-                         f"{np.degrees(self.initial_heading_sigma):.1f}° (> {np.degrees(ZARUPT_TURN_HEADING_SIGMA):.0f}°): "
-                         f"the linearised error model does not hold there and the roll/pitch and horizontal accel-bias "
-                         f"sigmas are optimistic; give a closer heading or leave out the ZARUPT")
         return tuple(notes)
 
     def to_dict(self) -> dict:
@@ -249,16 +256,6 @@ def _zarupt_cross(c: np.ndarray, f_n: np.ndarray, gyro_white: np.ndarray, window
     return m
 
 
-def gyrocompass(rate_level: np.ndarray, latitude: float) -> float:
-    """Heading rad of the body x axis from the mean gyro output rotated into the levelled frame (3,) rad/s.
-
-    The horizontal Earth rate ``Omega cos(lat)`` points north: ``psi = atan2(-w_y, w_x)`` of the
-    level-frame rate (paper 001 eq. 48). A gyro bias b moves it by ``b_h / (Omega cos(lat))``.
-    """
-    del latitude  # the direction does not depend on it; the sensitivity does (see the docstring)
-    return float(np.arctan2(-rate_level[1], rate_level[0]))
-
-
 def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: float | None,
           height: float = 0.0, config: ZuptConfig = ZuptConfig(), still: np.ndarray | None = None) -> ZuptResult:
     """Run the ZUPT fine alignment on ``samples`` (gyro rad/s, accel m/s^2, body frame) of a unit on a table.
@@ -295,19 +292,26 @@ def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: fl
     if rotating and {"heading", "attitude"} & set(config.measurements):
         raise AnalysisError(f"{samples.source}: the unit turns: the heading / attitude holds do not apply "
                             "(use position, velocity, zarupt)")
-    w_lvl = from_rph(roll0, pitch0, 0.0).apply(samples.gyro[:n_level].mean(axis=0))
     compass = config.heading_source == "gyrocompass"
-    if compass:
-        heading = gyrocompass(w_lvl, latitude)
-    c_init = from_rph(roll0, pitch0, heading)
+    held = bool({"heading", "attitude"} & set(config.measurements))
+    ba_prior = np.broadcast_to(np.asarray(config.accel_bias_prior, float), (3,))
+    bg_prior = np.broadcast_to(np.asarray(config.gyro_bias_prior, float), (3,))
+    # the heading the error model is linearised at (module docstring): the external one while it is held, else
+    # the closed-form gyrocompass through the record's holds, weighted with an external heading's prior
+    heading_ref, ref_sigma = heading, np.nan
+    if not held:
+        coarse = indexed_gyrocompass(samples.gyro, samples.accel, still, dt, latitude, noise.gyro_white, bg_prior)
+        heading_ref, ref_sigma = coarse.heading, coarse.sigma
+        if not compass:
+            w = coarse.sigma ** 2 / (coarse.sigma ** 2 + config.heading_sigma ** 2)
+            heading_ref = float(wrap_pi(coarse.heading + w * wrap_pi(heading - coarse.heading)))
+    c_init = from_rph(roll0, pitch0, heading_ref)
     ci = c_init.as_matrix()
     g_meas = float(np.linalg.norm(samples.accel[:n_level].mean(axis=0)))
     # tilt of the levelled attitude caused by an accelerometer bias b (body): eps0 = S b (module doc)
     S = np.zeros((3, 3))
     S[0], S[1] = -ci[1] / g_meas, ci[0] / g_meas
 
-    ba_prior = np.broadcast_to(np.asarray(config.accel_bias_prior, float), (3,))
-    bg_prior = np.broadcast_to(np.asarray(config.gyro_bias_prior, float), (3,))
     Pm = np.zeros((N_STATES, N_STATES))
     Pm[P, P] = np.eye(3) * config.position_sigma_m ** 2
     Pm[V, V] = np.eye(3) * config.velocity_sigma_mps ** 2
@@ -316,33 +320,20 @@ def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: fl
     Pm[A, A] = S @ Pm[BA, BA] @ S.T + np.eye(3) * config.attitude_sigma_rad ** 2  # dtheta0 = -S b_a
     Pm[A, BA] = -S @ Pm[BA, BA]
     Pm[BA, A] = Pm[A, BA].T
-    if compass:
-        # psi_est = atan2(-w_y, w_x) of the level-frame mean: a bias b (body) moves it by J b, so the
-        # heading error (true - est, about down) is -J b minus the white noise's share over the window
-        lvl = from_rph(roll0, pitch0, 0.0).as_matrix()
-        w_h2 = w_lvl[0] ** 2 + w_lvl[1] ** 2
-        jac = np.array([w_lvl[1], -w_lvl[0], 0.0]) / w_h2 @ lvl  # d psi / d w_body
-        # and the levelled frame's tilt leaks the vertical Earth rate into the horizontal one: the level-frame
-        # east rate vanishes where dtheta_D = -tan(lat) dtheta_N, so the heading error carries the north tilt
-        # (itself -S b_a from the levelling), which the initial heading error therefore shares with the accel
-        # bias (a small effect: pitch / x accel bias error/sigma through turns 1.51 / 1.62 -> 1.50 / 1.61 alone)
-        row = np.zeros(N_STATES)
-        row[BG], row[6], row[8] = -jac, -np.tan(latitude), 1.0
-        T = np.eye(N_STATES)
-        T[8] = row
-        Pm = T @ Pm @ T.T
-        Pm[8, 8] += jac @ np.diag(noise.gyro_white ** 2 / (n_level * dt)) @ jac
-
-    # Jacobians at the frozen solution (first-estimates Jacobians): re-linearising at the
-    # corrected attitude would leak spurious information into the unobservable
-    # tilt / horizontal accel-bias direction. The unit is static, so they are constant.
-    # the external heading's sigma: outside the filter while the heading is held (it cannot reduce it),
-    # its prior when the table turns (then the filter observes the heading); none from the gyrocompass
-    heading_extra = 0.0 if (compass or rotating) else config.heading_sigma
-    if rotating and not compass:
-        Pm[8, 8] += config.heading_sigma ** 2
+    xh = np.zeros(N_STATES)  # the error-state estimate; only the heading error (about the reference) is carried
+    # the external heading's sigma: outside the filter while the heading is held (it cannot reduce it), else the
+    # heading error's prior about the reference (none given: NO_HEADING_SIGMA); the levelling window's mean gyro
+    # output is then the gyrocompass's measurement of the heading and the gyro bias (a ZARUPT over the window)
+    heading_extra = config.heading_sigma if held else 0.0
     f_n = np.array([0.0, 0.0, -g_meas])
-    heading_sigma0 = float(np.hypot(np.sqrt(Pm[8, 8]), heading_extra))
+    if not held:
+        Pm[8, 8] += NO_HEADING_SIGMA ** 2 if compass else config.heading_sigma ** 2
+        xh[8] = 0.0 if compass else float(wrap_pi(heading - heading_ref))
+        h0 = np.zeros((3, N_STATES))
+        h0[:, A], h0[:, BG] = -ci.T @ skew(w_ie), -np.eye(3)
+        z0 = -(samples.gyro[:n_level].mean(axis=0) - ci.T @ w_ie)
+        Pm, dx, _ = sequential_update(Pm, h0, z0 - h0 @ xh, noise.gyro_white ** 2 / (n_level * dt))
+        xh = xh + dx
     phi, qd = van_loan(*_continuous_model(ci, f_n, w_ie, noise), n_blk * dt)
     prop = BlockPropagator(n_blk, dt, w_ie)
     c = ci
@@ -385,6 +376,7 @@ def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: fl
         elif not rotating:
             c_lin = ci
         Pm = phi @ Pm @ phi.T + qd
+        xh = phi @ xh
         # -- corrector (eq. 3.57-3.60, paper 001 eq. 35-40, 46-47) -------------------------------
         rows, z, r, names, cross = [], [], [], [], []
         if "position" in use:
@@ -425,8 +417,9 @@ def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: fl
         cv = np.hstack(cross) if "zarupt" in names else None
         unscaled = np.concatenate([rejected.get(nm, np.zeros(len(zz), int)) >= config.max_rejections
                                    for nm, zz in zip(names, z)])
-        Pm, dx, w_rows = sequential_update(Pm, H, zv, rv, (config.c0, config.c1) if config.gain_scaling else None,
-                                           unscaled, cv)
+        Pm, dx, w_rows = sequential_update(Pm, H, zv - H @ xh, rv,
+                                           (config.c0, config.c1) if config.gain_scaling else None, unscaled, cv)
+        xh = xh + dx
         weights = np.full(n_meas, np.nan)
         k_row = 0
         for nm, zz in zip(names, z):
@@ -435,12 +428,14 @@ def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: fl
             weights[slots[nm]] = w_nm
             k_row += len(zz)
         # -- feedback (eq. 3.61-3.67) -------------------------------------------------------------
-        pos, vel = pos + dx[P], vel + dx[V]
-        c = Rotation.from_rotvec(dx[A]).as_matrix() @ c
-        ba, bg = ba + dx[BA], bg + dx[BG]
+        # (all but the heading error, which stays in the state: the mechanisation keeps the reference heading)
+        pos, vel = pos + xh[P], vel + xh[V]
+        c = Rotation.from_rotvec([xh[6], xh[7], 0.0]).as_matrix() @ c
+        ba, bg = ba + xh[BA], bg + xh[BG]
+        xh[:8], xh[9:] = 0.0, 0.0
         att_sig = np.sqrt(np.diag(Pm[A, A]))
         hist["t"].append(blk.t[-1])
-        hist["c"].append(c)
+        hist["c"].append(Rotation.from_rotvec([0.0, 0.0, xh[8]]).as_matrix() @ c)
         hist["rph_sig"].append(np.array([att_sig[0], att_sig[1], np.hypot(att_sig[2], heading_extra)]))
         hist["pos"].append(pos.copy())
         hist["vel"].append(vel.copy())
@@ -458,7 +453,7 @@ def align(samples: ImuSamples, noise: ProcessNoise, latitude: float, heading: fl
     att = Rotation.from_matrix(arr["c"])
     return ZuptResult(arr["t"], euler_rph(att), arr["rph_sig"], arr["pos"], arr["vel"], arr["ba"], arr["bas"],
                       arr["bg"], arr["bgs"], arr["dv"], arr["da"], np.array(hist["w"]), att,
-                      np.array([roll0, pitch0, heading]), float(samples.t[n_level]), tuple(use),
+                      np.array([roll0, pitch0, heading_ref]), float(samples.t[n_level]), tuple(use),
                       (float(np.linalg.norm(noise.accel_white) * np.sqrt(n_blk * dt)),
                        float(np.linalg.norm(noise.gyro_white) * np.sqrt(n_blk * dt))),
-                      np.sqrt(np.diag(h_level @ Pm @ h_level.T)), heading_sigma0)
+                      np.sqrt(np.diag(h_level @ Pm @ h_level.T)), ref_sigma)
