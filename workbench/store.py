@@ -241,7 +241,15 @@ class Store:
         return self.list_sets(serial)
 
     def approve(self, set_id: str, by: str, comment: str = "") -> None:
-        """Record that ``by`` approved set ``set_id`` (the set itself is not modified)."""
+        """Record that ``by`` approved set ``set_id`` (the set itself is not modified). ``by`` is a name
+        (one printable line, not blank: a blank approver listed as 'approved by —' looked unapproved),
+        ``comment`` one printable line; StoreError otherwise."""
+        from workbench.confine import plain_line
+
+        if not isinstance(by, str) or not by.strip():
+            raise StoreError(f"store {self.url}: approve {set_id}: the approver's name is blank")
+        plain_line(by, "approver", StoreError)
+        plain_line(comment, "approval comment", StoreError)
         full_id = self.get_set(set_id).id
         with self.transaction() as db:
             if db.scalar(select(APPROVALS.c.set_id).where(APPROVALS.c.set_id == full_id)) is not None:

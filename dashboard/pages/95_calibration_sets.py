@@ -146,12 +146,12 @@ with tab_show:
 
     st.subheader("Approval")
     if info.approved_by:
-        st.success(f"Approved by {info.approved_by}.")
+        st.success(f"Approved by {ui.md_escape(info.approved_by)}.")
     else:
         signed_in = auth.operator()  # the signed-in operator approves; a name is typed only on an open 127.0.0.1
         by = signed_in or st.text_input("Approved by", key="cal.by")
         if signed_in:
-            st.caption(f"Approving as {signed_in} (signed in).")
+            st.caption(f"Approving as {ui.md_escape(signed_in)} (signed in).")
         comment = st.text_input("Comment", key="cal.comment")
         if st.button("Approve", disabled=not by.strip(), key="cal.approve"):
             try:

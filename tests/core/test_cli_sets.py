@@ -178,3 +178,29 @@ def test_sets_diff_of_two_models_is_one_line(db, tmp_path, capsys):
     assert main(["sets", "diff", str(pa), str(pb)]) == 2  # was a silent table of 0 differences
     (line,) = capsys.readouterr().err.strip().splitlines()
     assert "is a 'm' (U1), B" in line and "a 'other-grade' (U9): different models" in line
+
+
+@pytest.mark.parametrize("by,comment,match", [
+    ("", "", "the approver's name is blank"),  # was stored: listed as 'approved by —', yet 'already approved'
+    ("  ", "", "the approver's name is blank"),
+    ("eve\nfake line", "", "approver 'eve\\\\nfake line': expected one line"),
+    ("eve", "\x1b[2J", "approval comment '\\\\x1b\\[2J': expected one line"),
+])
+def test_an_approval_without_a_name_or_with_control_characters_is_refused(db, capsys, by, comment, match):
+    import re
+
+    s = a_set()
+    Store(db).add_set(s)
+    assert main(["sets", "approve", s.id, "--by", by, "--comment", comment]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert re.search(match, line), line
+    assert Store(db).approval(s.id) is None
+    assert main(["sets", "approve", s.id, "--by", "eve"]) == 0 and Store(db).approval(s.id)["approved_by"] == "eve"
+
+
+def test_sets_stats_of_a_model_not_in_the_store_is_one_line(db, capsys):
+    Store(db).add_set(a_set())
+    assert main(["sets", "stats", "--grade", "nosuch"]) == 2  # was an empty table, exit 0
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert "--grade 'nosuch': no unit of that model" in line and "(known: m)" in line
+    assert main(["sets", "stats", "--grade", "m"]) == 0

@@ -235,7 +235,14 @@ def stats(grade: str = typer.Option(..., "--grade", help="Unit model (grade name
     from workbench.store import Store
 
     store = Store()
-    serials = [s for s, model in store.units() if model == grade]
+    units = store.units()
+    serials = [s for s, model in units if model == grade]
+    if not serials:  # a misspelt grade printed an empty table, exit 0
+        from workbench.errors import StoreError
+        from workbench.registry import unknown_hint
+
+        raise StoreError(f"sets stats --grade {grade!r}: no unit of that model in {store.url} "
+                         f"{unknown_hint(grade, sorted({m for _, m in units if m}))}")
     sets = [c for c in (store.latest(s) for s in serials) if c is not None]
     rows = coefficient_stats(sets)
     t = Table("triad", "field", "index", "n", "mean", "std", "median", "robust std", f"outliers (|z| > {OUTLIER_Z})",
