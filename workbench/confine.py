@@ -21,7 +21,10 @@ from workbench.errors import WorkbenchError
 
 SAFE_COMPONENT = re.compile(r"[A-Za-z0-9][A-Za-z0-9._+-]{0,63}")
 PLAIN_LINE_MAX = 200  # characters of a free-text field (a unit's model)
-CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f\u2028\u2029]")  # line breaks, tabs, escapes, C1 controls
+# line breaks, tabs, escapes, C1 controls; and the invisible format characters that reorder or hide text
+# where it is shown (bidirectional overrides and isolates, zero-width characters, the BOM): a model
+# 'm\u202eevil' reads backwards in a certificate or a C comment
+CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f\u2028\u2029\u200b-\u200f\u202a-\u202e\u2060-\u2069\ufeff]")
 
 
 def safe_component(text: str, what: str = "name", error: type[WorkbenchError] = WorkbenchError) -> str:

@@ -7,7 +7,7 @@ import pytest
 
 from workbench.calset import atomic_write_text
 from workbench.cli import main
-from workbench.confine import confined_path, plain_template, safe_component
+from workbench.confine import confined_path, plain_line, plain_template, safe_component
 from workbench.errors import WorkbenchError
 
 
@@ -21,6 +21,18 @@ def test_safe_serials_pass(serial):
 def test_unsafe_serials_refused(serial):
     with pytest.raises(WorkbenchError, match="use 1-64 letters"):
         safe_component(serial, "--serial")
+
+
+@pytest.mark.parametrize("text", ["m\u202eevil", "a\u2066b\u2069", "zero\u200bwidth", "\ufeffbom", "a\nb", "\x1b[2J"])
+def test_plain_lines_refuse_invisible_reordering_characters(text):
+    # a model 'm<RLO>evil' reads backwards in a certificate, an export comment, the dashboard
+    with pytest.raises(WorkbenchError, match="expected one line of at most 200 printable characters"):
+        plain_line(text, "unit.model")
+
+
+@pytest.mark.parametrize("text", ["IMU-700 CA-200", "Størmer °/h ±2 µg", "日本語モデル", ""])
+def test_plain_lines_pass(text):
+    assert plain_line(text) == text
 
 
 def test_confined_path(tmp_path):

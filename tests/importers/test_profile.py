@@ -100,6 +100,9 @@ CASES = [
     (SINGLE_FILE, _set("procedure", "feraris"), "procedure 'feraris': unknown procedure (known: "),
     (SINGLE_FILE, _set("procedure", "feraris"), "; did you mean 'ferraris'?"),
     (SINGLE_FILE, _set("procedure", "spin-test"), "procedure 'spin-test': unknown procedure"),
+    # YAML 1.1 reads 1e7 (no point, unsigned exponent) as text: 'got '1e7'' alone was a puzzle
+    (SINGLE_FILE, _set("sample_rate_hz", "1e2"), "got '1e2' (YAML reads 1e2 as text: write it with a point"),
+    (SINGLE_FILE, _set("unit.model", "imu\u202eevil"), "unit.model"),
 ]
 
 

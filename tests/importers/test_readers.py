@@ -299,3 +299,13 @@ def test_dataflash_block_padding_and_skipped_bytes():
     assert (d.skipped_bytes, d.cut_bytes, d.cut_of, d.whole_bytes) == (4, 4, 10, 24)
     u = ulog_damage(bytes(16) + struct.pack("<HB", 2, 68) + b"ab" + struct.pack("<HB", 5, 68) + b"a")
     assert (u.cut_bytes, u.cut_of, u.whole_bytes) == (4, 8, 21)
+
+
+def test_a_csv_with_a_header_and_no_rows_names_the_file_once(tmp_path, capsys):
+    cols = {f"{k}{c}": {"column": f"{k}{c}"} for k in "ga" for c in "xyz"}
+    p = tmp_path / "p.yaml"
+    p.write_text(yaml.safe_dump({"format": "workbench-import/1", "site": {"latitude_deg": 45.0},
+                                 "sample_rate_hz": 100.0, "columns": cols, "unit": {"serial": "S1"}}))
+    (tmp_path / "rec.csv").write_text(",".join(cols) + "\n")
+    assert main(["import", str(p), str(tmp_path / "rec.csv"), "--out", str(tmp_path / "s")]) == 2
+    assert capsys.readouterr().err.strip() == f"error: {tmp_path / 'rec.csv'}: no rows"  # was 'rec.csv: rec.csv: no rows'

@@ -42,7 +42,14 @@ def _number(value, where: str, lo: float = -np.inf, hi: float = np.inf, optional
     if value is None and optional:
         return
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not lo <= value <= hi:
-        raise ImportProfileError(f"{where}: expected a finite number in {lo:g}..{hi:g}, got {value!r}")
+        hint = ""
+        if isinstance(value, str):
+            try:
+                float(value)
+                hint = f" (YAML reads {value} as text: write it with a point and a signed exponent, e.g. 1.0e+7)"
+            except ValueError:
+                pass
+        raise ImportProfileError(f"{where}: expected a finite number in {lo:g}..{hi:g}, got {value!r}{hint}")
 
 
 def _mapping(value, where: str, optional: bool = True) -> Mapping:

@@ -149,7 +149,7 @@ def read_stream(name: str, spec: Mapping, path: Path, reader: Mapping, where: st
         trailing = len(zero) - (int(np.flatnonzero(~zero)[-1]) + 1 if (~zero).any() else 0)
         raw = raw.iloc[:len(raw) - trailing]
     if len(raw) == 0:
-        raise ImportProfileError(f"{where}: {path.name}: no rows")
+        raise ImportProfileError(f"{where}: no rows" if where == str(path) else f"{where}: {path.name}: no rows")
     values = convert(raw, spec["columns"], where)
     t, clock, index = _instants(raw, spec, where, {} if clocks is None else clocks)
     lost = damage_entry(damage, path.name, float(t[-1])) if damage is not None and damage.any else None
