@@ -331,11 +331,12 @@ def deviation(y: np.ndarray, rate: float, kind: str = "oadev", taus: str | np.nd
 
 
 def segment_deviation(segments: list[np.ndarray], rate: float, kind: str, taus: str | np.ndarray,
-                      columns: tuple[str, ...], source: str = "data",
-                      overwrite: bool = False) -> tuple[DeviationCurve, np.ndarray]:
+                      columns: tuple[str, ...], source: str = "data", overwrite: bool = False,
+                      compiled: bool | None = None) -> tuple[DeviationCurve, np.ndarray]:
     """:func:`deviation` of checked gap-free segments (:func:`prepare_rate_data`), and the phase
     (C, L) of the longest one (for the noise identification), each phase computed once.
-    ``overwrite``: a segment that is a :func:`rate_buffer` view is replaced by its phase (:func:`phase`)."""
+    ``overwrite``: a segment that is a :func:`rate_buffer` view is replaced by its phase (:func:`phase`);
+    ``compiled`` as :func:`squared_sums` (True: numba is loaded anyway, e.g. by the IEEE 952 fit)."""
     longest = max(segments, key=len)
     m = averaging_factors(len(longest) + 1, taus, rate, kind)
     if len(m) == 0:
@@ -346,8 +347,8 @@ def segment_deviation(segments: list[np.ndarray], rate: float, kind: str, taus: 
     for seg in segments:
         n_seg = _n_terms(kind, len(seg) + 1, m)
         use = n_seg > 0
-        x = phase(seg, rate, overwrite=overwrite)
-        sums[use] += squared_sums(x, m[use], kind)
+        x = phase(seg, rate, compiled, overwrite)
+        sums[use] += squared_sums(x, m[use], kind, compiled)
         n[use] += n_seg[use]
         if seg is longest:
             x_longest = x

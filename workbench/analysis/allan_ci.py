@@ -324,13 +324,19 @@ def edf_greenhall_many(alpha: np.ndarray | int, d: int, m: np.ndarray | int, n_p
     al, mm, nn = (a.ravel() for a in np.broadcast_arrays(*(np.asarray(v, dtype=np.int64) for v in (alpha, m, n_phase))))
     shape = np.broadcast_shapes(np.shape(alpha), np.shape(m), np.shape(n_phase))
     keys = [(int(a), d, int(k), int(n), overlapping, modified) for a, k, n in zip(al, mm, nn)]
-    out = np.array([_MEMO.get(key, np.nan) for key in keys])
-    todo = np.flatnonzero([key not in _MEMO for key in keys])
-    if len(todo):
-        out[todo] = _edf_greenhall_new(al[todo], d, mm[todo], nn[todo], overlapping, modified)
-        if len(_MEMO) + len(todo) > _MEMO_SIZE:
+    first: dict[tuple, int] = {}  # each EDF not yet known, once (the columns of a record share most of theirs)
+    for i, key in enumerate(keys):
+        if key not in _MEMO and key not in first:
+            first[key] = i
+    if first:
+        todo = np.fromiter(first.values(), np.int64, len(first))
+        found = dict(zip(first, _edf_greenhall_new(al[todo], d, mm[todo], nn[todo], overlapping, modified).tolist()))
+        if len(_MEMO) + len(found) > _MEMO_SIZE:
             _MEMO.clear()
-        _MEMO.update((keys[i], float(out[i])) for i in todo)
+        _MEMO.update(found)
+        out = np.array([found[key] if key in found else _MEMO[key] for key in keys])
+    else:
+        out = np.array([_MEMO[key] for key in keys])
     return out.reshape(shape)
 
 

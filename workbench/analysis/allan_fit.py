@@ -544,7 +544,8 @@ def analyze_record(y: np.ndarray, rate: float, columns: tuple[str, ...] | list[s
 
     segments, warnings = allan.prepare_rate_data(y, tuple(columns), source, gap_policy, quantity)
     mean = np.mean(max(segments, key=len), axis=0)  # before the phase may overwrite the samples
-    curve, x = allan.segment_deviation(segments, rate, "oadev", taus, tuple(columns), source, overwrite)
+    # compiled sums whatever the length: the fit loads numba anyway (allan_fit_kernels)
+    curve, x = allan.segment_deviation(segments, rate, "oadev", taus, tuple(columns), source, overwrite, True)
     ci = confidence(curve, x, source=source)
     k = slow_window(curve.m, rate, x.shape[1] - 1)
     mk = None if k is None else int(curve.m[k])
