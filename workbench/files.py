@@ -1,8 +1,9 @@
-"""File helpers shared by every layer: atomic text writes and file digests.
+"""File helpers shared by every layer: atomic text writes, output folders and file digests.
 
 :func:`atomic_write_text` (temp file in the same folder + atomic rename: a reader never sees
-half a file, with the permissions the user's :func:`umask` gives) and :func:`file_sha256`
-(streamed SHA-256 of a file's bytes, for provenance).
+half a file, with the permissions the user's :func:`umask` gives), :func:`make_folder` (an output
+folder, or one line naming why it cannot be made) and :func:`file_sha256` (streamed SHA-256 of a
+file's bytes, for provenance).
 """
 
 from __future__ import annotations
@@ -54,6 +55,16 @@ def atomic_write_text(path: Path, text: str) -> Path:
         if isinstance(exc, OSError):  # disk full, quota
             raise WorkbenchError(f"{path}: cannot write ({exc.strerror or exc})") from None
         raise
+    return path
+
+
+def make_folder(path: Path, what: str = "output folder") -> Path:
+    """Create folder ``path`` (and its parents; an existing folder is fine); a file in the way or a
+    disk that refuses is a WorkbenchError naming the path (was an OSError traceback)."""
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise WorkbenchError(f"{path}: cannot make the {what} ({exc.strerror or exc})") from None
     return path
 
 

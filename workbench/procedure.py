@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from workbench.calset import CalibrationSet, atomic_write_text
+from workbench.files import make_folder
 from workbench.json_values import json_default
 from workbench.result import SummaryLines
 from workbench.session import Session
@@ -117,8 +118,9 @@ def result_json(result: ProcedureResult) -> str:
 
 
 def write_outputs(result: ProcedureResult, out_dir: Path, figures: Mapping | None = None) -> list[Path]:
-    """Write ``result.json``, ``calibration.json`` and ``figures/<name>.png`` into ``out_dir``."""
-    out_dir.mkdir(parents=True, exist_ok=True)
+    """Write ``result.json``, ``calibration.json`` and ``figures/<name>.png`` into ``out_dir``; a folder
+    that cannot be made (a file there, a read-only disk) is a WorkbenchError naming it."""
+    make_folder(out_dir)
     written = [atomic_write_text(out_dir / "result.json", result_json(result))]
     if result.calibration is not None:
         written.append(result.calibration.save(out_dir / "calibration.json"))

@@ -31,6 +31,7 @@ import pandas as pd
 
 from workbench.calset import Unit
 from workbench.errors import SessionError
+from workbench.files import make_folder
 from workbench.sequence import PlannedStep, Sequence
 from workbench.session import FORMAT, STEP_LOG, Session, StepRecord, step_log, write_manifest
 
@@ -165,7 +166,7 @@ def start(sequence: Sequence, rig, unit: Unit, procedure: str, out_dir: Path | N
         out_dir = Path(out_dir)
         if (out_dir / "session.json").exists():
             raise SessionError(f"{out_dir}: already holds a session (use --resume to continue it)")
-        out_dir.mkdir(parents=True, exist_ok=True)
+        make_folder(out_dir, "session folder")
         write_manifest(out_dir, manifest)
     return Recording(out_dir, manifest, plan)
 

@@ -172,6 +172,23 @@ def test_an_out_path_that_cannot_be_written_is_one_line(db, tmp_path, capsys):
     assert f"--plot {a_file / 'x.png'}: cannot write" in capsys.readouterr().err.strip().splitlines()[-1]
 
 
+def test_an_output_folder_under_a_file_is_one_line(db, tmp_path, capsys):
+    """run --out a_file/x (the session folder) and analyze --figures a_file (result folder) were
+    NotADirectoryError / FileExistsError tracebacks after the work was done."""
+    a_file = tmp_path / "a_file"
+    a_file.write_text("x")
+    assert main(["run", "multiposition", "-o", "dwell_s=2", "--no-store", "--no-figures",
+                 "--out", str(a_file / "x")]) == 2
+    assert f"{a_file / 'x' / 'session'}: cannot make the session folder (Not a directory)" in _one_line(capsys)
+    from workbench.jobs import simulate
+    from workbench.registry import procedure
+
+    simulate(procedure("multiposition").sequence("industrial_mems", dwell_s=2.0), "industrial_mems", 1,
+             tmp_path / "s", procedure="multiposition")
+    assert main(["analyze", "multiposition", str(tmp_path / "s"), "--no-store", "--figures", str(a_file)]) == 2
+    assert f"{a_file}: cannot make the output folder (File exists)" in _one_line(capsys)
+
+
 def test_an_empty_set_reference_says_so(db, capsys):
     """Was '.: cannot read (Is a directory)': an empty argument read as the current folder."""
     assert main(["sets", "show", ""]) == 2
