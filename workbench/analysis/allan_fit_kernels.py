@@ -115,21 +115,11 @@ def _solve_on(a, b, passive):  # pragma: no cover - compiled
 
 @numba.njit(cache=True, nogil=True)
 def _matvec(a, x):  # pragma: no cover - compiled
-    """a x, without BLAS (numba's matrix products would load scipy's)."""
+    """a x (a (m, n) or its transpose), without BLAS (numba's matrix products would load scipy's)."""
     out = np.zeros(a.shape[0])
     for i in range(a.shape[0]):
         for j in range(a.shape[1]):
             out[i] += a[i, j] * x[j]
-    return out
-
-
-@numba.njit(cache=True, nogil=True)
-def _tmatvec(a, v):  # pragma: no cover - compiled
-    """a^T v, without BLAS."""
-    out = np.zeros(a.shape[1])
-    for i in range(a.shape[0]):
-        for j in range(a.shape[1]):
-            out[j] += a[i, j] * v[i]
     return out
 
 
@@ -171,7 +161,7 @@ def nnls(a, b):  # pragma: no cover - compiled
         return x, 0.0
     bn = b / b_scale  # the problem is homogeneous in b: solved at unit scale, no overflow
     tol = 10.0 * _EPS * max(m, n) ** 2
-    w = _tmatvec(an, bn)
+    w = _matvec(an.T, bn)
     for _ in range(3 * n):
         best, k_best = -np.inf, -1
         for j in range(n):
@@ -202,7 +192,7 @@ def nnls(a, b):  # pragma: no cover - compiled
                 if not passive[j]:
                     x[j] = 0.0
         x = z
-        w = _tmatvec(an, bn - _matvec(an, x))
+        w = _matvec(an.T, bn - _matvec(an, x))
     res = (bn - _matvec(an, x))
     return x / scale * b_scale, np.sqrt(np.sum(res * res)) * b_scale
 
@@ -228,7 +218,7 @@ def _nnls_warm(a, b, passive):  # pragma: no cover - compiled
     n = a.shape[1]
     if passive.any() and _all_finite(a) and _all_finite(b):
         x = _solve_on(a, b, passive)
-        grad = _tmatvec(a, b - _matvec(a, x))
+        grad = _matvec(a.T, b - _matvec(a, x))
         b_norm = np.sqrt(np.sum(b * b))
         ok = True
         for j in range(n):
