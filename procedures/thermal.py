@@ -17,7 +17,7 @@ direct fit of bias against the unit temperature for ramps; cross-validated polyn
 hysteresis). ``accel_bias_instability_mg`` / ``gyro_bias_instability_deg_h``: the unit's Allan
 bias instability B (the campaign passes its Allan result's), the floor of each soak's bias sigma;
 ``accel_rrw_m_s_h_sqrt_h`` / ``gyro_rrw_deg_h_sqrt_h``: its bias random walk K, whose wander since
-the session start enters the sigma of the bias at t_ref (``with_bias_random_walk``).
+the session start enters the sigmas of the bias polynomial's coefficients (``with_bias_random_walk``).
 Product: a calibration set with the ``thermal`` block (t_ref ``t_ref_c``).
 The default profile is short (seven soaks, -10..50 °C, up only) so it fits in a campaign;
 use ``t_min_c=-40, t_max_c=85, step_c=15, return_sweep=True`` for a full qualification sweep.
@@ -70,7 +70,7 @@ OPTIONS = (
     Option("gyro_bias_instability_deg_h", "analysis", "magnitude", None, "gyro bias instability B (Allan)",
            unit="deg/h"),
     Option("accel_rrw_m_s_h_sqrt_h", "analysis", "magnitude", None, "accelerometer bias random walk K (Allan): "
-           "wander of the bias at t_ref", unit="m/s/h/sqrt(h)"),
+           "its wander in the bias coefficients' sigmas", unit="m/s/h/sqrt(h)"),
     Option("gyro_rrw_deg_h_sqrt_h", "analysis", "magnitude", None, "gyro rate random walk K (Allan)",
            unit="deg/h/sqrt(h)"),
 )

@@ -35,7 +35,7 @@ import numpy as np
 
 from workbench.analysis.thermal_points import (RampSeries, SoakGroup, SoakPoint, ramp_series, soak_groups,  # noqa: F401
                                                soak_points)
-from workbench.analysis.thermal_poly import MAX_ORDER, PolyFit, _nan_none, fit_thermal_poly  # noqa: F401
+from workbench.analysis.thermal_poly import MAX_ORDER, PolyFit, _nan_none, coefficient_sigma, fit_thermal_poly  # noqa: F401
 from workbench.analysis.thermal_settling import Settling, settling, windowed_slope  # noqa: F401
 from workbench.errors import AnalysisError, SessionError
 from workbench.units import fit_unit, label, to_unit
@@ -128,38 +128,27 @@ def fit_soaks(points: dict[str, list[SoakPoint]], t_ref_c: float = 25.0, max_ord
     return fits
 
 
-def elapsed_at(temperature_c: np.ndarray, elapsed_s: np.ndarray, t_ref_c: float) -> float:
-    """Session time (s) at which the sweep first passed ``t_ref_c``, from the unit temperature of
-    soaks or ramp windows and their times since the session start: interpolated between the two
-    (in time order) that bracket it, else the one nearest to it in temperature."""
-    order = np.argsort(elapsed_s)
-    temp, t = np.asarray(temperature_c, float)[order], np.asarray(elapsed_s, float)[order]
-    for i in range(len(t) - 1):
-        a, b = temp[i], temp[i + 1]
-        if (a - t_ref_c) * (b - t_ref_c) <= 0 and a != b:
-            return float(t[i] + (t_ref_c - a) / (b - a) * (t[i + 1] - t[i]))
-    return float(t[np.argmin(np.abs(temp - t_ref_c))])
-
-
 def with_bias_random_walk(fit: PolyFit, temperature_c: np.ndarray, elapsed_s: np.ndarray,
                           rrw: np.ndarray | float | None) -> PolyFit:
-    """``fit`` (a bias fit over a sweep) with the bias random walk in the sigma of its value at t_ref.
+    """``fit`` (a bias fit over a sweep) with the bias random walk in the sigmas of its coefficients.
 
     A bias random walk ``K`` (SI per axis: rad/s/√s, m/s²/√s; the Allan result's ``rrw``)
     wanders by ``K sqrt(t)`` from the session start. The points of a sweep (soaks, ramp windows;
-    unit temperature ``temperature_c`` °C at ``elapsed_s`` s) follow one another in time, so the
-    polynomial absorbs the wander and its value at t_ref carries the wander at the time the
-    sweep passed t_ref (:func:`elapsed_at`; the first passage, a lower bound for a return
-    sweep): variance ``K^2 t`` is added to the constant term's. The bias the set reports is the
-    unit's at power-on, like a multi-position test's at ambient.
+    unit temperature ``temperature_c`` °C at ``elapsed_s`` s since the session start, in the
+    fit's order) follow one another in time, so the walk is common to neighbours: covariance
+    ``K^2 min(t_i, t_j)``. A sweep that climbs in temperature turns the walk into a slope, and
+    the polynomial's value at t_ref carries the walk since power-on (the bias the set reports
+    is the unit's at power-on, like a multi-position test's at ambient). Each coefficient's
+    sigma becomes the larger of the fit's own (Birge-scaled, held-out floor) and the sandwich
+    sigma under the walk (:func:`coefficient_sigma`). Unchanged without ``rrw`` or without
+    the points' times.
     """
-    ok = np.isfinite(np.asarray(elapsed_s, float))
-    if rrw is None or not ok.any():
+    t = np.asarray(elapsed_s, float)
+    if rrw is None or len(t) != len(fit.temperature_c) or not np.isfinite(t).all():
         return fit
-    t = elapsed_at(np.asarray(temperature_c, float)[ok], np.asarray(elapsed_s, float)[ok], fit.t_ref_c)
-    sigma = fit.coeffs_sigma.copy()
-    sigma[:, 0] = np.hypot(sigma[:, 0], np.asarray(rrw, float) * np.sqrt(t))
-    return replace(fit, coeffs_sigma=sigma)
+    k2 = np.broadcast_to(np.asarray(rrw, float) ** 2, (3,))
+    walk = k2[:, None, None] * np.minimum.outer(t, t)[None]
+    return replace(fit, coeffs_sigma=np.fmax(fit.coeffs_sigma, coefficient_sigma(fit, walk)))
 
 
 def analyze_thermal(session, triads=("gyro", "accel"), t_ref_c: float = 25.0, max_order: int = MAX_ORDER,

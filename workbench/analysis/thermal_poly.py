@@ -207,6 +207,29 @@ def _simplest(chosen: int, z2: dict) -> int:
     return chosen if explained is None else min(chosen, explained)
 
 
+def coefficient_sigma(fit: PolyFit, extra_cov: np.ndarray) -> np.ndarray:
+    """1-sigma (3, K) of ``fit``'s coefficients when its points' errors are correlated.
+
+    ``extra_cov`` (3, N, N): covariance each axis's points carry beyond their own sigmas (SI²,
+    e.g. a bias random walk between soaks). The estimates are the fit's own weighted least
+    squares ``p = G y``, ``G = (A'WA)^-1 A'W``; their covariance under ``diag(sigma^2) +
+    extra_cov`` is ``G C G'`` (the sandwich form, the weights left as fitted). NaN where a
+    coefficient was not estimated.
+    """
+    out = np.full(fit.coeffs_sigma.shape, np.nan)
+    dt = fit.temperature_c - fit.t_ref_c
+    for ax in range(3):
+        if not np.isfinite(fit.coeffs_sigma[ax, 0]):
+            continue
+        k = int(fit.orders[ax])
+        a = _design(dt, k, 0.5 * np.sign(fit.direction) if fit.hysteresis_modelled[ax] else None)
+        w = 1.0 / fit.sigma[:, ax] ** 2
+        g = np.linalg.solve((a * w[:, None]).T @ a, (a * w[:, None]).T)
+        cov = g @ (np.diag(fit.sigma[:, ax] ** 2) + extra_cov[ax]) @ g.T
+        out[ax, :k + 1] = np.sqrt(np.diag(cov)[:k + 1]) * _DT_SCALE ** -np.arange(k + 1)
+    return out
+
+
 def fit_thermal_poly(temperature_c, values, sigma=None, direction=None, groups=None, t_ref_c: float = 25.0,
                      max_order: int = MAX_ORDER, order: int | None = None, quantity: str = "",
                      hysteresis: str = "auto", per_axis: bool = True) -> PolyFit:
