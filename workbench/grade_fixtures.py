@@ -80,6 +80,8 @@ def load_spec(name_or_path: str | Path) -> SensorSpec:
     Raises :class:`SpecError` naming the file and the field for a missing file, bad YAML,
     an unknown key or unit, a wrong shape or a non-physical value.
     """
+    if not str(name_or_path).strip():  # resolved, a blank name was '.../fixtures/units/.yaml'
+        raise SpecError(f"empty grade name (known grades: {', '.join(grade_names())})")
     path = _resolve(name_or_path)
     if not path.is_file():
         known = ", ".join(grade_names())

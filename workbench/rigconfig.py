@@ -107,11 +107,13 @@ def load_rig_config(name_or_path: str | Path) -> RigConfig:
     """Load ``fixtures/rigs/<name>.yaml`` or a YAML path; ``"sim"`` is the default simulated rig."""
     from workbench.safe_yaml import load_yaml_file
 
+    known = ", ".join(sorted(x.stem for x in RIGS_DIR.glob("*.yaml")))
+    if not str(name_or_path).strip():  # Path('') is the current folder ('.: no such rig configuration')
+        raise WorkbenchError(f"empty rig name (known: {known})")
     p = Path(name_or_path)
     if not p.suffix:
         p = RIGS_DIR / f"{name_or_path}.yaml"
     if not p.is_file():
-        known = ", ".join(sorted(x.stem for x in RIGS_DIR.glob("*.yaml")))
         raise WorkbenchError(f"{name_or_path}: no such rig configuration (known: {known})")
     cfg = rig_config_from_dict(load_yaml_file(p), str(p))
     return RigConfig(**{**cfg.__dict__, "path": p})

@@ -189,6 +189,23 @@ def test_an_output_folder_under_a_file_is_one_line(db, tmp_path, capsys):
     assert f"{a_file}: cannot make the output folder (File exists)" in _one_line(capsys)
 
 
+@pytest.mark.parametrize("args,match", [
+    (["run", "multiposition", "--unit", "", "--dry-run"], "empty grade name (known grades: "),
+    (["run", "multiposition", "--rig", " ", "--dry-run"], "empty rig name (known: "),
+    (["rig", "check", ""], "empty rig name (known: "),
+    # the hardware-in-the-loop server: refused before any port opens (were a KeyError traceback, a motion
+    # engine dead of int(nan), an immediate exit 0, a server that never stops)
+    (["rig", "hil", "sim", "--seconds", "1"], "rig sim-turntable: not a hardware-in-the-loop configuration"),
+    (["rig", "hil", "hil", "--speed", "nan", "--seconds", "1"], "hil speed nan: expected simulated seconds"),
+    (["rig", "hil", "hil", "--speed", "1e308", "--seconds", "1"], "hil speed 1e+308: expected"),
+    (["rig", "hil", "hil", "--seconds", "-5"], "--seconds -5: expected a positive number"),
+    (["rig", "hil", "hil", "--seconds", "nan"], "--seconds nan: expected a positive number"),
+])
+def test_a_blank_grade_or_rig_name_or_a_bad_hil_setting_says_so(db, capsys, args, match):
+    assert main(args) == 2
+    assert match in _one_line(capsys)  # were '.../fixtures/units/.yaml: no such ...' and '.: no such ...'
+
+
 def test_an_empty_set_reference_says_so(db, capsys):
     """Was '.: cannot read (Is a directory)': an empty argument read as the current folder."""
     assert main(["sets", "show", ""]) == 2

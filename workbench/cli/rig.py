@@ -15,7 +15,7 @@ rig_app = typer.Typer(no_args_is_help=True, help="Real rigs: check a connection;
 
 
 @rig_app.command("check")
-def check(config: Path = typer.Argument(..., help="Rig configuration (fixtures/rigs/*.yaml).")) -> None:
+def check(config: str = typer.Argument(..., help="Rig configuration (fixtures/rigs/*.yaml).")) -> None:
     """Query identity, table position and rate, interlock, chamber and unit temperature; moves nothing."""
     from workbench.drivers.rig import open_real_rig
     from workbench.rigconfig import load_rig_config
@@ -36,15 +36,19 @@ def check(config: Path = typer.Argument(..., help="Rig configuration (fixtures/r
 
 
 @rig_app.command("hil")
-def hil(config: Path = typer.Argument(..., help="Rig configuration on 127.0.0.1 (e.g. fixtures/rigs/hil.yaml)."),
+def hil(config: str = typer.Argument(..., help="Rig configuration on 127.0.0.1 (e.g. fixtures/rigs/hil.yaml)."),
         speed: float = typer.Option(None, "--speed", help="Simulated seconds per wall-clock second "
                                                           "(default: hil.speed of the configuration)."),
         seconds: float = typer.Option(None, "--seconds", help="Stop after this many wall-clock seconds "
                                                               "(default: run until Ctrl-C).")) -> None:
     """Serve the table, chamber and IMU stream of CONFIG on 127.0.0.1 from the simulated lab."""
+    import math
+
     from workbench.sim.hil import HilLab
     from workbench.rigconfig import load_rig_config
 
+    if seconds is not None and not (math.isfinite(seconds) and seconds > 0):  # -5 stopped at once, NaN never
+        raise typer.BadParameter(f"--seconds {seconds:g}: expected a positive number of seconds")
     cfg = load_rig_config(config)
     lab = HilLab(cfg, speed=speed).start()
     o = lab.config.options

@@ -49,6 +49,7 @@ from workbench.sim.rig import SimRig, move_profile, ramp_profile
 
 log = logging.getLogger("workbench.hil")
 _TICK_S = 0.01  # wall-clock period of the motion engine
+MAX_SPEED = 1000.0  # simulated s per wall-clock s: a cap above what the engine serves (1e5 samples/s at 100 Hz)
 
 
 class HilLab:
@@ -72,6 +73,13 @@ class HilLab:
         hil = opts.get("hil") or {}
         self.seed = int(seed if seed is not None else hil.get("seed", 1))
         self.speed = float(speed if speed is not None else hil.get("speed", 1.0))
+        if not 0 < self.speed <= MAX_SPEED:  # NaN and inf fail too: the motion engine's tick count
+            raise RigError(f"rig {cfg.name}: hil speed {self.speed:g}: expected simulated seconds per wall-clock "
+                           f"second in (0, {MAX_SPEED:g}]")
+        missing = [k for k in ("table_controller", "imu_stream") if k not in opts]
+        if missing:
+            raise RigError(f"rig {cfg.name}: not a hardware-in-the-loop configuration (no {', '.join(missing)}; "
+                           "e.g. fixtures/rigs/hil.yaml)")
         self.stream_settings = dict(opts["imu_stream"])
         self.fs = float(self.stream_settings["sample_rate_hz"])
         if truth is None:
