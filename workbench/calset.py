@@ -27,7 +27,7 @@ import jsonschema
 import numpy as np
 
 from workbench import __version__
-from workbench.confine import plain_line, safe_component
+from workbench.confine import name_problems
 from workbench.errors import CalibrationFormatError
 from workbench.files import atomic_write_text, file_sha256  # noqa: F401  (re-exported: older imports)
 from workbench.json_values import json_default, json_value
@@ -319,20 +319,6 @@ def _check_finite(data, path: str, source: str) -> None:
             _check_finite(v, f"{path}[{i}]", source)
     elif isinstance(data, float) and not np.isfinite(data):
         raise CalibrationFormatError(f"{source}: {path}: NaN or infinite value")
-
-
-def name_problems(set_id, serial, model, source: str) -> list[str]:
-    """One line per rule broken by a set's ``id`` and ``unit.serial`` (1-64 of ``A-Z a-z 0-9 . _ + -``)
-    and ``unit.model`` (one printable line): they name store keys and go verbatim into exports (a C
-    header, parameter files), where a line break or ``*/`` could add a #define or a parameter line."""
-    out = []
-    for check, value, key in ((safe_component, set_id, "id"), (safe_component, serial, "unit.serial"),
-                              (plain_line, model, "unit.model")):
-        try:
-            check(value, f"{source}: {key}", CalibrationFormatError)
-        except CalibrationFormatError as exc:
-            out.append(str(exc))
-    return out
 
 
 def validate(data: Mapping, source: str = "<dict>", names: bool = True) -> None:

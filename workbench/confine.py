@@ -8,6 +8,8 @@
   ``{x.attr}`` / ``{x[0]}`` access to Python objects), optionally from an allowed set.
 - :func:`plain_line`: free text (a unit's model) that stays one line of printable characters,
   so it cannot add lines to a parameter file or a header an export writes it into.
+- :func:`name_problems`: which of those rules a calibration set's id, serial and model break (a set
+  stored before them is read with a warning, never exported).
 """
 
 from __future__ import annotations
@@ -72,3 +74,20 @@ def plain_template(template: str, allowed: Iterable[str] | None = None, what: st
         if allowed is not None and n not in allowed:
             raise error(f"{what} {template!r}: unknown field {{{n}}} (known: {', '.join(sorted(allowed))})")
     return template
+
+
+def name_problems(set_id, serial, model, source: str) -> list[str]:
+    """One line per rule broken by a calibration set's ``id`` and ``unit.serial`` (:func:`safe_component`)
+    and ``unit.model`` (:func:`plain_line`), each naming ``source`` and the key: they name store keys and
+    go verbatim into exports (a C header, parameter files), where a line break or ``*/`` could add a
+    #define or a parameter line. Empty when the set could be written today."""
+    from workbench.errors import CalibrationFormatError
+
+    out = []
+    for check, value, key in ((safe_component, set_id, "id"), (safe_component, serial, "unit.serial"),
+                              (plain_line, model, "unit.model")):
+        try:
+            check(value, f"{source}: {key}", CalibrationFormatError)
+        except CalibrationFormatError as exc:
+            out.append(str(exc))
+    return out

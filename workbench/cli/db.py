@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
+
 import typer
 
 from workbench.cli import out
@@ -11,19 +14,29 @@ db_app = typer.Typer(no_args_is_help=True, help="Store schema: current revision 
 
 
 def _engine():
-    from sqlalchemy import create_engine
-    from sqlalchemy.exc import SQLAlchemyError
+    from sqlalchemy import create_engine, inspect
 
-    from workbench.store import default_url, redact, redact_url
+    from workbench.store import default_url, redact_url
 
     real = default_url()
     url = redact_url(real)  # the password never appears in output
-    try:
+    with _store_errors(url, real, "cannot open"):
         engine = create_engine(real)
-        engine.connect().close()
-    except (SQLAlchemyError, ValueError, ImportError) as exc:
-        raise StoreError(f"store {url}: cannot open ({redact(str(exc).splitlines()[0][:160], real)})") from None
+        inspect(engine).get_table_names()  # reads the file: a SQLite 'store' that is no database fails here
     return url, engine
+
+
+@contextmanager
+def _store_errors(url: str, real: str, doing: str) -> Iterator[None]:
+    """A database library's error inside the block as one StoreError line naming the store (password redacted)."""
+    from sqlalchemy.exc import SQLAlchemyError
+
+    from workbench.store import redact
+
+    try:
+        yield
+    except (SQLAlchemyError, ValueError, ImportError) as exc:
+        raise StoreError(f"store {url}: {doing} ({redact(str(exc).splitlines()[0][:160], real)})") from None
 
 
 @db_app.command("current")
@@ -38,10 +51,12 @@ def current() -> None:
 @db_app.command("upgrade")
 def upgrade_cmd() -> None:
     """Migrate the store's schema to the revision this version needs."""
-    from workbench.store import upgrade
+    from workbench.store import default_url, upgrade
 
     url, engine = _engine()
-    out.print(f"{url}: upgraded to revision {upgrade(engine)}")
+    with _store_errors(url, default_url(), "cannot upgrade"):
+        revision = upgrade(engine)
+    out.print(f"{url}: upgraded to revision {revision}")
 
 
 def register(app: typer.Typer) -> None:

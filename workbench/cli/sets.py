@@ -59,7 +59,7 @@ def list_sets(unit: str = typer.Option(None, "--unit", help="Only this unit seri
         raise typer.BadParameter(f"--format {format!r}: expected table or json")
     if not infos:
         out.print(f"no calibration sets {'' if unit is None else f'of unit {unit} '}in {url}")
-    from workbench.calset import name_problems
+    from workbench.confine import name_problems
 
     for i in infos:
         for problem in name_problems(i.id, i.serial, i.model, f"store set {i.id}"):
