@@ -2,9 +2,9 @@
 
 Closed-form synthetic table data (``tests/nav/synthetic.py``), HG1700 noise of paper 001 table 5-1
 (ARW 0.125 °/√h, VRW 0.065 m/s/√h), true biases drawn from the filter's priors (3 °/h, 1 mg), see
-:func:`tests.nav.test_zupt.normalised_errors`. Prints, per case (static with the heading held /
-rotating with four 90° turns and no external heading, or an external heading of 1-sigma 17°, 30°, 90°,
-180° drawn from it; ZUPT / ZUPT + ZARUPT), the rms of error / sigma of roll, pitch, heading, accel and gyro
+:func:`tests.nav.test_zupt.normalised_errors`. Prints, per case (static with the heading held, or with
+none (gyrocompass); rotating with four 90° turns and no external heading, or an external heading of
+1-sigma 17°, 30°, 90°, 180° drawn from it; ZUPT / ZUPT + ZARUPT), the rms of error / sigma of roll, pitch, heading, accel and gyro
 bias over the seeds with the chi-square 95 % band and the CPU time of each case's runs, then the
 final heading sigma and rms heading error of the rotating gyrocompass case beside the closed-form limit
 ``ARW / (Omega cos(lat) sqrt(T))`` (T the whole record: the heading is the east gyro rate over the horizontal
@@ -43,13 +43,17 @@ def main() -> None:
     lo, hi = np.sqrt(chi2.ppf([0.025, 0.975], a.seeds) / a.seeds)
     print(f"rms(error / sigma) over {a.seeds} seeds, {a.hold:g} s holds; chi-square 95 % band [{lo:.2f}, {hi:.2f}]")
     print(f"{'case':30s} " + " ".join(f"{x:>7s}" for x in LABELS) + "   CPU s")
-    cases = [("static", None)] + [("rotating", s) for s in (None, 17.0, 30.0, 90.0, 180.0)]
+    cases = [("static", "held"), ("static", None)] + [("rotating", s) for s in (None, 17.0, 30.0, 90.0, 180.0)]
     for profile, heading in cases:
         for zarupt in (False, True):
             c0 = time.process_time()
-            z, _, _ = normalised_errors(profile, zarupt, range(a.seeds), a.hold, heading_sigma_deg=heading)
+            at_rest = profile == "static" and heading is None
+            z, _, _ = normalised_errors(profile, zarupt, range(a.seeds), a.hold,
+                                        heading_sigma_deg=None if heading == "held" else heading,
+                                        gyrocompass_at_rest=at_rest)
             rms = np.sqrt(np.mean(z ** 2, axis=0))
-            given = "" if profile == "static" else (" no heading" if heading is None else f" heading {heading:g}°")
+            given = (" heading held" if heading == "held" else " no heading" if heading is None
+                     else f" heading {heading:g}°")
             print(f"{profile + given + (' ZARUPT' if zarupt else ' ZUPT'):30s} " + " ".join(f"{x:7.2f}" for x in rms)
                   + f"  {time.process_time() - c0:6.1f}")
     total = a.paper_hold + 4 * (a.paper_hold + TURN_S)
