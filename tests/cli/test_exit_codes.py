@@ -200,6 +200,8 @@ def test_an_output_folder_under_a_file_is_one_line(db, tmp_path, capsys):
     (["rig", "hil", "hil", "--speed", "1e308", "--seconds", "1"], "hil speed 1e+308: expected"),
     (["rig", "hil", "hil", "--seconds", "-5"], "--seconds -5: expected a positive number"),
     (["rig", "hil", "hil", "--seconds", "nan"], "--seconds nan: expected a positive number"),
+    # under the batch's progress bar: the bar is cleared, the list names every scheduler the help offers
+    (["batch", "multiposition", "x", "--no-store", "--scheduler", "bogus"], "expected 'local', 'serial' or tcp://"),
 ])
 def test_a_blank_grade_or_rig_name_or_a_bad_hil_setting_says_so(db, capsys, args, match):
     assert main(args) == 2

@@ -148,7 +148,7 @@ def cluster_client(scheduler: str = "local", workers: int = 2, dashboard: bool =
             cluster.close()
         return
     if not scheduler.startswith("tcp://"):
-        raise WorkbenchError(f"--scheduler {scheduler!r}: expected 'local' or tcp://HOST:PORT")
+        raise WorkbenchError(f"--scheduler {scheduler!r}: expected 'local', 'serial' or tcp://HOST:PORT")
     try:
         client = Client(scheduler, timeout="5s")
     except (OSError, TimeoutError) as exc:
