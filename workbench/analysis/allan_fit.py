@@ -211,6 +211,17 @@ class _Fit:
     model: np.ndarray
 
 
+def _unpack(c: np.ndarray, has_q: bool, q_fixed: float | None, has_n: bool, n_fixed: float | None,
+            fixed: dict[int, float]) -> tuple[float, float, np.ndarray]:
+    """(q, n, coefficients of terms 2-4) from the IRLS's free coefficients ``c``, in the order of
+    :meth:`_Family._linear`'s columns (q, n when free and present, then the free terms of 2-4)."""
+    it = iter(c)
+    q = (next(it) if q_fixed is None else q_fixed) if has_q else 0.0
+    n = (next(it) if n_fixed is None else n_fixed) if has_n else 0.0
+    rest = np.array([fixed[j] if j in fixed else next(it) for j in (2, 3, 4)])
+    return float(q), float(n), rest
+
+
 class _Family:
     """The five-term AVAR model of one channel with the quantization shape h(tau; r) tied to the terms.
 
@@ -233,6 +244,7 @@ class _Family:
         self.r_top = _X_RANGE[1] * scale
         n = int(np.ceil(np.log10(_X_RANGE[1] / _X_RANGE[0]) * _SHAPES_PER_DECADE)) + 1
         self.log_r = np.linspace(np.log(_X_RANGE[0] * scale), np.log(self.r_top), n)
+        self.r_grid = [float(np.exp(lr)) for lr in self.log_r]
         self._columns: dict[float, np.ndarray] = {}
         self._held_parts: dict[tuple, tuple[tuple[int, ...], np.ndarray, np.ndarray]] = {}
         self.slow: SlowRate | None = None
@@ -288,16 +300,20 @@ class _Family:
             cols[:, i] = col
         cols[:, len(lead):] = free_cols
         c, model, dev = self._irls(cols, offset, start, cutoff)
-        it = iter(c)
-        q = (next(it) if q_fixed is None else q_fixed) if q_col is not None else 0.0
-        n = (next(it) if n_fixed is None else n_fixed) if n_col is not None else 0.0
-        rest = np.array([fixed[j] if j in fixed else next(it) for j in (2, 3, 4)])
-        return float(q), float(n), dev, rest, model
+        q, n, rest = _unpack(c, q_col is not None, q_fixed, n_col is not None, n_fixed, fixed)
+        return q, n, dev, rest, model
 
     def shaped(self, log_r: float, fixed: dict[int, float], start: np.ndarray, cutoff: float = np.inf) -> _Fit:
         """Best model with N^2 = r Q^2 (r = exp(log_r)) and the terms in ``fixed`` held."""
         r = float(np.exp(log_r))
         q_fixed = fixed[0] if 0 in fixed else (fixed[1] / r if 1 in fixed else None)
+        col = self._shape_column(log_r, r, q_fixed)
+        q, _, dev, rest, model = self._linear(col, q_fixed, None, None, fixed, start, cutoff)
+        return _Fit(dev, np.array([q, r * q, *rest]), r, model)
+
+    def _shape_column(self, log_r: float, r: float, q_fixed: float | None) -> np.ndarray:
+        """The AVAR per Q^2 (K,) of quantization and white noise with N^2 = r Q^2 (r = exp(log_r)), the
+        quantization shape's slow rate taken with the Q^2 held ``q_fixed`` (None: the last full fit's)."""
         held = self.slow is not None and q_fixed is not None  # the shape depends on the Q^2 held
         col = None if held else self._columns.get(log_r)
         if col is None:
@@ -305,8 +321,31 @@ class _Family:
             col = self.plain[:, 0] * quantization_shape(self.tau, r, self.slow, q2) + r * self.plain[:, 1]  # per Q^2
             if not held and len(self._columns) < 4 * len(self.log_r):  # grid columns are reused by every search
                 self._columns[log_r] = col
-        q, _, dev, rest, model = self._linear(col, q_fixed, None, None, fixed, start, cutoff)
-        return _Fit(dev, np.array([q, r * q, *rest]), r, model)
+        return col
+
+    def _grid(self, fixed: dict[int, float], start: np.ndarray, cutoff: float, lowest: float
+              ) -> tuple[np.ndarray, Callable[[int], _Fit]]:
+        """:meth:`shaped` at every grid point in one compiled loop, each point's cutoff ``min(cutoff, lowest)``
+        with ``lowest`` lowered by every deviance found: (deviances (G,), the fit of a grid point by index)."""
+        from workbench.analysis.allan_fit_kernels import irls_grid
+
+        q_fixed = [fixed[0] if 0 in fixed else (fixed[1] / r if 1 in fixed else None) for r in self.r_grid]
+        cols = np.array([self._shape_column(lr, r, qf) for lr, r, qf in zip(self.log_r, self.r_grid, q_fixed)])
+        free, free_cols, held = self._held(fixed)
+        if q_fixed[0] is None:
+            lead, offsets = cols, np.broadcast_to(held, cols.shape)
+        else:
+            lead, offsets = cols[:, :0], np.array([qf * col + held for qf, col in zip(q_fixed, cols)])
+        devs, c, models = irls_grid(np.ascontiguousarray(lead), np.ascontiguousarray(offsets),
+                                    np.ascontiguousarray(free_cols), np.ascontiguousarray(start), self.avar, self.edf,
+                                    float(cutoff), float(lowest), _IRLS_ITER, _IRLS_STEP, CORRELATION)
+
+        def fit(g: int) -> _Fit:
+            q, _, rest = _unpack(c[g], True, q_fixed[g], False, None, fixed)
+            r = self.r_grid[g]
+            return _Fit(float(devs[g]), np.array([q, r * q, *rest]), r, models[g])
+
+        return devs, fit
 
     def ieee(self, fixed: dict[int, float], start: np.ndarray, cutoff: float = np.inf) -> _Fit:
         """Best model with h = 1 and N^2 >= r_top Q^2 (N^2 = r_top Q^2 + n, n >= 0)."""
@@ -340,19 +379,16 @@ class _Family:
         unconverged (an overestimate): the callers only need to know it is above."""
         fits = [self.ieee(fixed, start, cutoff), self.no_white(fixed, start, cutoff)]
         if fixed.get(0, 1.0) > 0 and fixed.get(1, 1.0) > 0 and not (0 in fixed and 1 in fixed):
-            grid = []
-            lowest = min(f.dev for f in fits)
-            for lr in self.log_r:
-                grid.append(self.shaped(lr, fixed, start, min(cutoff, lowest)))
-                lowest = min(lowest, grid[-1].dev)
-            i = int(np.argmin([f.dev for f in grid]))
-            fits += grid
+            devs, grid_fit = self._grid(fixed, start, cutoff, min(f.dev for f in fits))
+            i = int(np.argmin(devs))
+            top = grid_fit(i)  # the grid's first lowest: the one min() over the points in order would keep
+            fits.append(top)
             lo, hi = self.log_r[max(i - 1, 0)], self.log_r[min(i + 1, len(self.log_r) - 1)]
-            if np.isfinite(grid[i].dev) and grid[i].dev <= min(f.dev for f in fits):
+            if np.isfinite(top.dev) and top.dev <= min(f.dev for f in fits):
                 found: dict[float, _Fit] = {}
 
                 def dev_at(lr: float) -> float:
-                    found[lr] = self.shaped(lr, fixed, grid[i].model, cutoff)
+                    found[lr] = self.shaped(lr, fixed, top.model, cutoff)
                     return found[lr].dev
 
                 lr, _ = minimize_bounded(dev_at, lo, hi, xtol=_LOG_R_TOL)

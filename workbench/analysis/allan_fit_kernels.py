@@ -27,15 +27,11 @@ _EPS = float(np.finfo(float).eps)
 
 
 @numba.njit(cache=True, nogil=True)
-def lstsq(a, b):  # pragma: no cover - compiled
-    """argmin ||a x - b||_2 (x (n,)) of a full-rank ``a`` (m, n), m >= n, by Householder QR with the columns
-    scaled to unit peak; a column with no component beyond the previous ones gets x = 0."""
+def _unit_columns(a):  # pragma: no cover - compiled
+    """(a with each column divided by its largest magnitude, those magnitudes (n,); 1 for a zero column)."""
     m, n = a.shape
-    x = np.zeros(n)
-    if n == 0:
-        return x
     scale = np.ones(n)
-    r = np.empty((m, n))
+    out = np.empty((m, n))
     for j in range(n):
         peak = 0.0
         for i in range(m):
@@ -43,7 +39,19 @@ def lstsq(a, b):  # pragma: no cover - compiled
         if peak > 0:
             scale[j] = peak
         for i in range(m):
-            r[i, j] = a[i, j] / scale[j]
+            out[i, j] = a[i, j] / scale[j]
+    return out, scale
+
+
+@numba.njit(cache=True, nogil=True)
+def lstsq(a, b):  # pragma: no cover - compiled
+    """argmin ||a x - b||_2 (x (n,)) of a full-rank ``a`` (m, n), m >= n, by Householder QR with the columns
+    scaled to unit peak; a column with no component beyond the previous ones gets x = 0."""
+    m, n = a.shape
+    x = np.zeros(n)
+    if n == 0:
+        return x
+    r, scale = _unit_columns(a)
     peak = 0.0
     for i in range(m):
         peak = max(peak, abs(b[i]))
@@ -142,16 +150,7 @@ def nnls(a, b):  # pragma: no cover - compiled
         return np.full(n, np.nan), np.nan
     # columns scaled to unit peak (x >= 0 is invariant under positive column scales): the noise
     # bases span 20 decades, which would otherwise swamp the gradient test
-    scale = np.ones(n)
-    an = np.empty((m, n))
-    for j in range(n):
-        peak = 0.0
-        for i in range(m):
-            peak = max(peak, abs(a[i, j]))
-        if peak > 0:
-            scale[j] = peak
-        for i in range(m):
-            an[i, j] = a[i, j] / scale[j]
+    an, scale = _unit_columns(a)
     x = np.zeros(n)
     passive = np.zeros(n, np.bool_)
     b_scale = 0.0
@@ -289,3 +288,30 @@ def irls(cols, offset, start, avar, edf, cutoff, max_iter, step_tol, correlation
             if 0.0 <= rate < 0.9 and d1 - e2 * rate / (1.0 - rate) > cutoff:
                 break
     return c, model, d1
+
+
+@numba.njit(cache=True, nogil=True)
+def irls_grid(lead, offsets, free_cols, start, avar, edf, cutoff, lowest, max_iter, step_tol,
+              correlation):  # pragma: no cover - compiled
+    """:func:`irls` of G models in order, model g with the columns ``lead[g]`` (none when ``lead`` is (G, 0))
+    then ``free_cols`` (K, f) and the offset ``offsets[g]`` (K,), each stopped at ``min(cutoff, lowest)`` with
+    ``lowest`` lowered to every deviance found: (deviances (G,), coefficients (G, p), models (G, K))."""
+    n_grid, k_pts = offsets.shape
+    n_lead = 1 if lead.shape[1] > 0 else 0
+    p = n_lead + free_cols.shape[1]
+    devs = np.empty(n_grid)
+    coef = np.empty((n_grid, p))
+    models = np.empty((n_grid, k_pts))
+    cols = np.empty((k_pts, p))
+    cols[:, n_lead:] = free_cols
+    for g in range(n_grid):
+        if n_lead:
+            cols[:, 0] = lead[g]
+        c, model, dev = irls(cols, offsets[g], start, avar, edf, lowest if lowest < cutoff else cutoff, max_iter,
+                             step_tol, correlation)
+        devs[g] = dev
+        coef[g] = c
+        models[g] = model
+        if dev < lowest:
+            lowest = dev
+    return devs, coef, models
