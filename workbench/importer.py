@@ -74,12 +74,22 @@ def _ranges(ranges, where: str) -> dict[str, tuple[int, int]]:
 
 
 def _section_steps(prof: Mapping, sections: dict, t: np.ndarray, counter: np.ndarray, rate: float,
-                   profile_path: Path, data: Path) -> tuple[np.ndarray, list[StepRecord]]:
-    """Step labels (N,) and records from the profile's sections (sample-counter ranges, end exclusive)."""
+                   profile_path: Path, data: Path, end: int) -> tuple[np.ndarray, list[StepRecord]]:
+    """Step labels (N,) and records from the profile's sections (sample-counter ranges, end exclusive);
+    ``end`` the time base's last counter + 1. Sections that overlap, or reach past the recording (the
+    sections of another recording), are refused naming them."""
     step = np.full(len(t), -1, dtype=np.int64)
     steps: list[StepRecord] = []
     step_specs = (prof.get("sections") or {}).get("steps", {})
-    for i, (name, (a, b)) in enumerate(sorted(sections.items(), key=lambda kv: kv[1][0])):
+    ordered = sorted(sections.items(), key=lambda kv: kv[1][0])
+    for (n0, (a0, b0)), (n1, (a1, b1)) in zip(ordered, ordered[1:]):
+        if a1 < b0:
+            raise ImportProfileError(f"{data}: section {n1} ({a1}..{b1}) overlaps section {n0} ({a0}..{b0})")
+    for name, (a, b) in ordered:
+        if b > end:
+            raise ImportProfileError(f"{data}: section {name} ({a}..{b}) reaches past the recording's "
+                                     f"{end} samples (the sections of another recording?)")
+    for i, (name, (a, b)) in enumerate(ordered):
         spec = step_specs.get(name)
         if spec is None:
             raise ImportProfileError(f"{profile_path}: sections.steps: no entry for section {name!r}")
@@ -161,7 +171,8 @@ def import_file(profile_path: str | Path, data_file: str | Path, out_dir: str | 
     counter = streams[base].index[merged.kept]
     sections = _sections(prof, data, profile_path)
     if sections:
-        step, steps = _section_steps(prof, sections, t, counter, rate, profile_path, data)
+        step, steps = _section_steps(prof, sections, t, counter, rate, profile_path, data,
+                                     int(streams[base].index[-1]) + 1)
     else:
         step, steps = _free_steps(t, rate)
     df.insert(1, "step", step)

@@ -309,3 +309,22 @@ def test_a_csv_with_a_header_and_no_rows_names_the_file_once(tmp_path, capsys):
     (tmp_path / "rec.csv").write_text(",".join(cols) + "\n")
     assert main(["import", str(p), str(tmp_path / "rec.csv"), "--out", str(tmp_path / "s")]) == 2
     assert capsys.readouterr().err.strip() == f"error: {tmp_path / 'rec.csv'}: no rows"  # was 'rec.csv: rec.csv: no rows'
+
+
+@pytest.mark.parametrize("inline,match", [
+    # were: 'step 0: column t: gap of 0.505 s ...' (b's labels overwrote a's) and a silent import of b cut at 400
+    ({"a": [0, 100], "b": [50, 200]}, "section b (50..200) overlaps section a (0..100)"),
+    ({"a": [0, 100], "b": [350, 9000]}, "section b (350..9000) reaches past the recording's 400 samples"),
+])
+def test_sections_that_overlap_or_reach_past_the_recording_are_one_line(tmp_path, capsys, inline, match):
+    cols = {f"{k}{c}": {"column": f"{k}{c}"} for k in "ga" for c in "xyz"}
+    p = tmp_path / "p.yaml"
+    p.write_text(yaml.safe_dump({"format": "workbench-import/1", "site": {"latitude_deg": 45.0},
+                                 "sample_rate_hz": RATE, "columns": cols, "unit": {"serial": "S1"},
+                                 "sections": {"inline": inline, "steps": {n: {"kind": "static"} for n in inline}}}))
+    import pandas as pd
+
+    pd.DataFrame(np.c_[GYRO, ACCEL], columns=list(cols)).to_csv(tmp_path / "rec.csv", index=False)
+    assert main(["import", str(p), str(tmp_path / "rec.csv"), "--out", str(tmp_path / "s")]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert match in line and not (tmp_path / "s").exists()
