@@ -59,20 +59,24 @@ def procedure(name: str) -> ModuleType:
 def procedure_names() -> list[str]:
     """The registered procedures' names, read from the ``NAME`` literal of each module's source
     (a module whose ``NAME`` is not a literal is imported to find out): checking a name costs no import."""
-    pkg = importlib.import_module("procedures")
     names = []
-    for info in pkgutil.iter_modules(pkg.__path__):
-        if info.name.startswith("_"):
-            continue
-        spec = info.module_finder.find_spec(info.name, None)
-        declared = _constants(getattr(spec, "origin", None), ("NAME",))
+    for module, declared in _declared(("NAME",)):
         if "NAME" in declared:
             names.append(str(declared["NAME"]))
         else:
-            m = importlib.import_module(f"procedures.{info.name}")
+            m = importlib.import_module(module)
             if hasattr(m, "NAME") and hasattr(m, "analyze"):
                 names.append(m.NAME)
     return sorted(names)
+
+
+def _declared(names: tuple[str, ...]):
+    """(module name, literal values of ``names`` in its source) of every ``procedures/*.py`` not starting with _."""
+    pkg = importlib.import_module("procedures")
+    for info in pkgutil.iter_modules(pkg.__path__):
+        if not info.name.startswith("_"):
+            spec = info.module_finder.find_spec(info.name, None)
+            yield f"procedures.{info.name}", _constants(getattr(spec, "origin", None), names)
 
 
 def unknown_hint(name: str, known: list[str]) -> str:
@@ -116,17 +120,12 @@ def campaign_procedures(triads: set[str]) -> list[ModuleType]:
     Only those are imported: a module whose source declares ``CAMPAIGN_ORDER = None`` or
     ``TRIADS`` the unit does not have (literal values, read with :mod:`ast`) is left alone.
     """
-    pkg = importlib.import_module("procedures")
     procs = []
-    for info in pkgutil.iter_modules(pkg.__path__):
-        if info.name.startswith("_"):
-            continue
-        spec = info.module_finder.find_spec(info.name, None)
-        declared = _constants(getattr(spec, "origin", None))
+    for module, declared in _declared(("TRIADS", "CAMPAIGN_ORDER")):
         if ("CAMPAIGN_ORDER" in declared and declared["CAMPAIGN_ORDER"] is None) or \
                 ("TRIADS" in declared and not set(declared["TRIADS"]) <= triads):
             continue
-        m = importlib.import_module(f"procedures.{info.name}")
+        m = importlib.import_module(module)
         if hasattr(m, "NAME") and hasattr(m, "analyze") and getattr(m, "CAMPAIGN_ORDER", None) is not None \
                 and set(m.TRIADS) <= triads:
             procs.append(m)
