@@ -4,8 +4,10 @@ The raw samples lie on the ellipsoid ``|inv(I + M) (m - b)| = F``. Fitted here:
 
 - :func:`fit_ellipsoid`: a convex algebraic fit guaranteed to be an ellipsoid (the quadric's
   matrix constrained positive definite with cvxpy, on data centred and scaled first), then a
-  geometric refinement (least squares on the first-order distance ``(|B x| - 1) / |grad |B x||``,
-  ``x = m - b``, ``B = inv(G)`` symmetric, in µT) that
+  refinement by least squares on the calibrated field's norm error ``(|B x| - 1) F`` (µT, ``x = m - b``,
+  ``B = inv(G)`` symmetric, ``F = det(G)^(1/3)``: the error the quality figures report, every field
+  direction weighted alike; the raw-space distance ``(|B x| - 1) / |grad |B x||`` differs from it by
+  the local radius over ``F``, i.e. by the soft iron) that
   gives the estimates their covariance; ``robust=True`` rejects outliers first. The
   refinement carries a weak Gaussian prior (1-sigma 10 % per element) on the shape of ``B``
   (``B / det(B)^(1/3) - I``) and, with a reference field norm, on its scale
@@ -121,8 +123,8 @@ def fit_ellipsoid(mag: np.ndarray, field_norm_ut: float | None = None, robust: b
         b = _sym(p[3:])
         u = (mag[idx] - p[:3]) @ b  # B symmetric: u = B (m - c)
         nu = np.linalg.norm(u, axis=1)
-        # first-order geometric distance (µT) to the ellipsoid |B x| = 1: (|u| - 1) / |grad_x |B x||
-        return ((nu - 1.0) * nu / np.linalg.norm(u @ b, axis=1))[:, None]
+        # the calibrated field's norm error in µT: (|u| - 1) F, F = det(G)^(1/3) = det(B)^(-1/3)
+        return ((nu - 1.0) / np.cbrt(np.linalg.det(b)))[:, None]
 
     def prior(p):
         b = _sym(p[3:])
