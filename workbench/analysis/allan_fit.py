@@ -142,13 +142,17 @@ def quantization_shape(tau: np.ndarray, ratio: float, slow: SlowRate | None = No
     ``slow`` (with ``q2`` = Q^2, u^2 s^2): the record's slow rate, whose integral over tau adds a variance
     M(tau) tau^2 to the white noise's N^2 tau (Gaussian to second order in the rate's mean: valid while the
     mean moves the integral by well under a step within the correlation time 12 Q^2 / N^2).
+    ``ratio`` and ``q2`` may be arrays broadcasting against ``tau`` (the ratios then finite and > 0): one
+    shape per element, e.g. (G, 1) for G shapes at K taus.
     """
     tau = np.asarray(tau, float)
-    if not np.isfinite(ratio) or ratio <= 0:
+    if np.ndim(ratio) == 0 and (not np.isfinite(ratio) or ratio <= 0):
         return np.ones_like(tau)
+    q2 = np.asarray(q2, float)
 
     def x(t: np.ndarray) -> np.ndarray:  # increment variance over t, in units of the squared step 12 Q^2
-        drift = slow.mean_square(t) * t ** 2 / q2 if slow is not None and q2 > 0 else 0.0
+        drift = np.where(q2 > 0, slow.mean_square(t) * t ** 2 / np.where(q2 > 0, q2, 1.0), 0.0) if slow is not None \
+            else 0.0
         return (ratio * t + drift) / 12.0
 
     rho = _sawtooth_correlation(np.stack([x(tau), x(2.0 * tau)]))
@@ -330,7 +334,12 @@ class _Family:
         from workbench.analysis.allan_fit_kernels import irls_grid
 
         q_fixed = [fixed[0] if 0 in fixed else (fixed[1] / r if 1 in fixed else None) for r in self.r_grid]
-        cols = np.array([self._shape_column(lr, r, qf) for lr, r, qf in zip(self.log_r, self.r_grid, q_fixed)])
+        if self.slow is not None and q_fixed[0] is not None:  # shapes of the Q^2 held: all in one evaluation
+            r = np.array(self.r_grid)[:, None]
+            cols = self.plain[:, 0] * quantization_shape(self.tau, r, self.slow, np.array(q_fixed)[:, None]) \
+                + r * self.plain[:, 1]
+        else:
+            cols = np.array([self._shape_column(lr, r, qf) for lr, r, qf in zip(self.log_r, self.r_grid, q_fixed)])
         free, free_cols, held = self._held(fixed)
         if q_fixed[0] is None:
             lead, offsets = cols, np.broadcast_to(held, cols.shape)
