@@ -15,7 +15,7 @@
 
 Used by :mod:`workbench.analysis.mag_free`. Public: :class:`FitFigures`, :class:`FreeQuality`,
 :func:`point_values`, :func:`figures_of`, :func:`halves`, :func:`held_out`, :func:`holdout_quality`,
-:data:`MOVE_Z`, :data:`JACKKNIFE_BLOCKS`, :func:`jackknife_sigmas`.
+:func:`own_hard_iron_rms`, :data:`MOVE_Z`, :data:`JACKKNIFE_BLOCKS`, :func:`jackknife_sigmas`.
 """
 
 from __future__ import annotations
@@ -64,10 +64,13 @@ class FreeQuality:
     series: dict | None = None  # per point: t s; norm (fraction) and angle rad (NaN without gravity) per fit
     hard_iron_move: np.ndarray | None = None  # (3,) µT: the second half's hard iron minus the first's (each fitted alone)
     hard_iron_move_sigma: np.ndarray | None = None  # (3,) µT: the halves' sigmas in quadrature
+    norm_rms_own_hard_iron: float | None = None  # held-out norm RMS (fraction) with the second half's own hard iron
 
     def to_dict(self) -> dict:
         move = None if self.hard_iron_move is None else {
-            "ut": json_value(self.hard_iron_move), "sigma_ut": json_value(self.hard_iron_move_sigma)}
+            "ut": json_value(self.hard_iron_move), "sigma_ut": json_value(self.hard_iron_move_sigma),
+            "field_norm_rms_pct_held_out_own_hard_iron": json_value(100 * self.norm_rms_own_hard_iron)
+            if self.norm_rms_own_hard_iron is not None else None}
         return {"fit": self.fit.to_dict(), "plain_ellipsoid": None if self.baseline is None else self.baseline.to_dict(),
                 "n_points": self.n_points, "split_t_s": self.split_t, "notes": list(self.notes),
                 "hard_iron_move_between_halves": move}
@@ -90,6 +93,10 @@ class FreeQuality:
             if np.nanmax(z, initial=0.0) > MOVE_Z:
                 line += (f", over {MOVE_Z:g} sigma: the field the board carries moved during the record; a calibration "
                          "holds one hard iron, and the held-out figures include the move")
+                if self.norm_rms_own_hard_iron is not None:
+                    line += (f" (held out with the second half's own hard iron, the first half's soft iron kept: "
+                             f"field-norm RMS {100 * self.norm_rms_own_hard_iron:.2f} %, against "
+                             f"{100 * self.fit.norm_rms_held_out:.2f} %)")
             out.append(line)
         return out
 
@@ -163,12 +170,25 @@ def holdout_quality(fitter: Fitter, fit: MagFit, mag: np.ndarray, accel: np.ndar
     except AnalysisError as exc:
         base = None
         notes.append(f"failed ({exc})")
+    own = None
     try:
         one, two = fitter(first), fitter(second)
         move, move_sigma = two.bias - one.bias, np.hypot(one.bias_sigma, two.bias_sigma)
+        own = own_hard_iron_rms(one, mag[second])
     except AnalysisError:
         move = move_sigma = None
-    return FreeQuality(ours, base, len(mag), split, tuple(notes), series, move, move_sigma)
+    return FreeQuality(ours, base, len(mag), split, tuple(notes), series, move, move_sigma, own)
+
+
+def own_hard_iron_rms(fit: MagFit, mag: np.ndarray) -> float:
+    """Field-norm RMS (fraction of the fitted norm) of ``fit`` on raw points ``mag`` (N, 3) µT once its hard iron is
+    refitted on them (soft iron and norm kept): what a calibration would leave there had its hard iron not moved
+    (an oracle: it uses the points it judges)."""
+    from scipy.optimize import least_squares
+
+    inverse = np.linalg.inv(fit.field_norm_ut * fit.soft_iron)
+    sol = least_squares(lambda b: np.linalg.norm((mag - b) @ inverse.T, axis=1) - 1.0, fit.bias)
+    return float(np.sqrt(np.mean(sol.fun ** 2)))
 
 
 
