@@ -60,12 +60,25 @@ OPTIONS = (
 DEFAULTS = defaults(OPTIONS)
 
 
+def _tilt_pairs(value) -> np.ndarray:
+    """``tilts_deg`` as (N, 2) [roll, pitch] degrees; ProcedureError naming the value otherwise
+    ([30], [[30, "a"]] and [1e10] were reshape / conversion tracebacks)."""
+    try:
+        tilts = np.asarray(value, float)
+    except (TypeError, ValueError):
+        tilts = np.zeros((0, 3))
+    if tilts.ndim != 2 or tilts.shape[1] != 2 or not np.all(np.abs(tilts) <= 180.0):
+        raise ProcedureError(f"{NAME}: tilts_deg={value!r}: expected [roll, pitch] pairs in degrees, "
+                             "each within ±180, e.g. [[0, 0], [30, 0]]")
+    return tilts
+
+
 def sequence(spec, **options) -> Sequence:
     """Yaw sweeps (static steps or one continuous revolution) at each fixture tilt."""
     o = check_options(NAME, OPTIONS, options, "sequence")
     if getattr(spec, "mag", None) is None:
         raise ProcedureError(f"{NAME}: the unit has no magnetometer")
-    tilts = np.asarray(o["tilts_deg"], float).reshape(-1, 2)
+    tilts = _tilt_pairs(o["tilts_deg"])
     steps: list = []
     for roll, pitch in tilts:
         mount = mount_from_euler("xy", [roll, pitch])

@@ -202,6 +202,12 @@ def test_an_output_folder_under_a_file_is_one_line(db, tmp_path, capsys):
     (["rig", "hil", "hil", "--seconds", "nan"], "--seconds nan: expected a positive number"),
     # under the batch's progress bar: the bar is cleared, the list names every scheduler the help offers
     (["batch", "multiposition", "x", "--no-store", "--scheduler", "bogus"], "expected 'local', 'serial' or tcp://"),
+    # option values: a non-finite number anywhere in a list, and tilts that are not [roll, pitch] pairs
+    # (were reshape / conversion tracebacks in the magnetometer sequence)
+    (["run", "magnetometer", "-o", "tilts_deg=[[0, 1e400]]", "--dry-run"], "tilts_deg=[[0, inf]]: holds a number that is not finite"),
+    (["run", "magnetometer", "-o", "tilts_deg=[30]", "--dry-run"], "tilts_deg=[30]: expected [roll, pitch] pairs"),
+    (["run", "magnetometer", "-o", 'tilts_deg=[[30, "a"]]', "--dry-run"], "expected [roll, pitch] pairs in degrees"),
+    (["run", "magnetometer", "-o", "tilts_deg=[[1e10, 0]]", "--dry-run"], "each within ±180"),
 ])
 def test_a_blank_grade_or_rig_name_or_a_bad_hil_setting_says_so(db, capsys, args, match):
     assert main(args) == 2

@@ -27,7 +27,8 @@ def parse_options(items: list[str] | None, defaults: Mapping | None = None) -> d
     """``key=value`` pairs; values parsed as JSON where they parse (numbers, lists, true/false).
 
     With the procedure's ``defaults``, an option whose default is a number must be a finite
-    number (``-o dwell_s=abc`` is a one-line error naming the option, not a traceback later).
+    number (``-o dwell_s=abc`` is a one-line error naming the option, not a traceback later); no
+    value may hold a NaN or an infinity (``tilts_deg=[1e400]``), whatever its default.
     """
     opts = {}
     for item in items or []:
@@ -42,7 +43,20 @@ def parse_options(items: list[str] | None, defaults: Mapping | None = None) -> d
         default = (defaults or {}).get(key)
         if _is_number(default) and not (_is_number(value) and math.isfinite(value)):
             raise WorkbenchError(f"--option {key}={value!r}: expected a number (default {default!r})")
+        if not _finite(value):  # JSON reads NaN, Infinity and 1e400 (inf): no option takes them
+            raise WorkbenchError(f"--option {key}={value!r}: holds a number that is not finite")
     return opts
+
+
+def _finite(value) -> bool:
+    """Whether every number in ``value`` (a JSON value: nested lists and mappings) is finite."""
+    if isinstance(value, float):
+        return math.isfinite(value)
+    if isinstance(value, list):
+        return all(map(_finite, value))
+    if isinstance(value, dict):
+        return all(map(_finite, value.values()))
+    return True
 
 
 def _is_number(value) -> bool:
