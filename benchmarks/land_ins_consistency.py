@@ -13,7 +13,10 @@ one error of the unit beside the turn-on biases and white noise (``scale``: the 
 walk), ``all`` (every error of the grade). A consistent filter gives rms(error / sigma) ~ 1 (chi-square
 95 % band printed) and a median |error / sigma| of 0.674. The same units (seeds) in every column.
 
-    python benchmarks/land_ins_consistency.py [--units 40] [--cases white,flicker,all]
+``--turn-coherence-deg 90``: the filter takes the gyro's scale factor and misalignment in the turns as
+attitude noise coherent over 90° (``LandInsConfig.turn_coherence_rad``).
+
+    python benchmarks/land_ins_consistency.py [--units 40] [--cases white,flicker,all] [--turn-coherence-deg 90]
 """
 
 from __future__ import annotations
@@ -56,8 +59,10 @@ def unit_for(case: str, k: int):
     return replace(unit, **changes)
 
 
-def heading_z(case: str, k: int, bias_models: tuple[str, ...]) -> dict[str, tuple[float, float]]:
-    """(heading error rad, heading sigma rad) at the end of the pre-calibration, per bias model."""
+def heading_z(case: str, k: int, bias_models: tuple[str, ...],
+              turn_coherence_rad: float | None = None) -> dict[str, tuple[float, float]]:
+    """(heading error rad, heading sigma rad) at the end of the pre-calibration, per bias model; the filter's
+    ``turn_coherence_rad`` (``LandInsConfig``)."""
     from workbench.grades import load_spec
     from workbench.nav.compensate import imu_samples
     from workbench.nav.land_ins import LandInsConfig, grade_errors, run_land_ins
@@ -72,7 +77,8 @@ def heading_z(case: str, k: int, bias_models: tuple[str, ...]) -> dict[str, tupl
     out = {}
     for bm in bias_models:
         res = run_land_ins(samples, site.latitude, np.radians(LON_DEG), H_M, 0.0,
-                           grade_errors(load_spec("tactical_low_noise"), bias_model=bm), LandInsConfig())
+                           grade_errors(load_spec("tactical_low_noise"), bias_model=bm),
+                           LandInsConfig(turn_coherence_rad=turn_coherence_rad))
         i = min(int(np.searchsorted(tr["t"].to_numpy(), res.t[-1])), len(tr) - 1)
         err = (res.rph[-1, 2] - tr["yaw"].iloc[i] + np.pi) % (2 * np.pi) - np.pi
         out[bm] = (float(err), float(res.sigma[-1, 8]))
@@ -85,6 +91,8 @@ def main() -> None:
     p.add_argument("--units", type=int, default=40)
     p.add_argument("--cases", default="white,flicker,all")
     p.add_argument("--bias-models", default="gauss_markov,ladder")
+    p.add_argument("--turn-coherence-deg", type=float, default=None,
+                   help="the gyro scale factor and misalignment as turn noise coherent over this angle")
     a = p.parse_args()
     models = tuple(a.bias_models.split(","))
     lo, hi = np.sqrt(chi2.ppf([0.025, 0.975], a.units) / a.units)
@@ -93,7 +101,8 @@ def main() -> None:
     print(f"{'case':8s} {'bias model':13s} {'sigma °':>8s} {'rms err °':>9s} {'rms e/s':>8s} {'median':>7s}")
     t0, c0 = time.perf_counter(), time.process_time()
     for case in a.cases.split(","):
-        rows = [heading_z(case, k, models) for k in range(a.units)]
+        turn = None if a.turn_coherence_deg is None else np.radians(a.turn_coherence_deg)
+        rows = [heading_z(case, k, models, turn) for k in range(a.units)]
         for bm in models:
             e, s = np.array([r[bm] for r in rows]).T
             z = e / s

@@ -341,3 +341,49 @@ def test_heading_is_consistent_with_flicker_bias_instability_through_the_ladder(
         z.append(((res.rph[-1, 2] - tr["yaw"].iloc[i] + np.pi) % (2 * np.pi) - np.pi) / res.sigma[-1, 8])
     lo, hi = np.sqrt(chi2.ppf([0.005, 0.995], 24) / 24)
     assert lo < np.sqrt(np.mean(np.square(z))) < hi, np.round(z, 2)
+
+
+def test_turn_noise_has_the_variance_of_the_constant_misalignment_after_the_coherence_angle():
+    # a yaw turn at 10 °/s with the body axes on NED: the gyro's scale factor and misalignment (random constants
+    # of the grade's sigmas) give the attitude error C W(omega) ds t, variance C W S W^T C^T t^2; the white noise of
+    # turn_coherence_rad = theta_c has the same after t = theta_c / |omega| (exact: the density is constant here)
+    from workbench.nav.land_ins import A_, error_dynamics, scale_columns
+
+    ge = grade_errors(load_spec("tactical_low_noise"))
+    theta = np.radians(90.0)
+    w_ie = 7.292115e-5 * np.array([np.cos(LAT), 0.0, -np.sin(LAT)])
+    w_nb = np.radians([0.0, 0.0, 10.0])
+    f = np.array([0.0, 0.0, -9.8])
+    args = (np.eye(3), f, np.zeros(3), LAT, H, ge)
+    _, off = error_dynamics(*args, LandInsConfig(), w_nb + w_ie, f)
+    _, on = error_dynamics(*args, LandInsConfig(turn_coherence_rad=theta), w_nb + w_ie, f)
+    t = theta / np.linalg.norm(w_nb)
+    w = scale_columns(w_nb)
+    var_s = np.concatenate([ge.gyro_scale, np.repeat(ge.gyro_misalignment, 2)]) ** 2
+    np.testing.assert_allclose((on - off)[A_, A_] * t, (w * var_s) @ w.T * t ** 2, rtol=1e-9)
+    assert np.allclose(on[V_, V_], off[V_, V_])
+    # a filter that carries the scale-factor states (29) has them as states, not as noise
+    _, states = error_dynamics(*args, LandInsConfig(turn_coherence_rad=theta, states=29), w_nb + w_ie, f)
+    np.testing.assert_array_equal(states, off)
+
+
+def test_heading_is_consistent_with_every_error_of_the_grade_with_the_turn_noise():
+    # units with every error of the tactical grade (draw_unit), the 20-state filter with the ladder and the gyro
+    # scale factor and misalignment as turn noise coherent over 90°; heading error / sigma after the full
+    # pre-calibration over 12 units within the chi-square 99 % band [0.52, 1.53]. Measured 1.25 (without the turn
+    # noise 1.54 on these 12; over 40 units 1.14 against 1.43, benchmarks/land_ins_consistency.py)
+    from scipy.stats import chi2
+
+    spec = load_spec("tactical_low_noise")
+    ge = grade_errors(spec)
+    z = []
+    for k in range(12):
+        session, truth = drive(drive_config(precalibration_legs(), Site(40.0, 33.0, 900.0), 0.0),
+                               draw_unit(spec, 1000 + k), 1000 + k)
+        tr = truth["trajectory"]
+        res = run_land_ins(imu_samples(session.samples, session.sample_rate_hz), LAT, LON, H, 0.0, ge,
+                           LandInsConfig(turn_coherence_rad=np.radians(90.0)))
+        i = min(int(np.searchsorted(tr["t"].to_numpy(), res.t[-1])), len(tr) - 1)
+        z.append(((res.rph[-1, 2] - tr["yaw"].iloc[i] + np.pi) % (2 * np.pi) - np.pi) / res.sigma[-1, 8])
+    lo, hi = np.sqrt(chi2.ppf([0.005, 0.995], 12) / 12)
+    assert lo < np.sqrt(np.mean(np.square(z))) < hi, np.round(z, 2)

@@ -156,7 +156,9 @@ class LandInsConfig:
     levelling makes the tilt and the horizontal bias cancel, a correlation the filter must carry or
     it believes the bias known to ``tilt0 g`` and loses the stops after the first turn);
     ``boresight_rw`` rad/√s, ``lever_rw`` m/√s; ``states`` 15, 20 (paper 001), 29 (+ the gyro scale
-    factor and misalignment) or 38 (+ the accelerometer's too).
+    factor and misalignment) or 38 (+ the accelerometer's too). ``turn_coherence_rad``: a filter without
+    the gyro's scale-factor states takes the tilt and heading their errors make in a turn as attitude
+    process noise coherent over that rotation angle (:func:`error_dynamics`; None = not modelled).
     """
 
     update_s: float = 1.0
@@ -181,6 +183,7 @@ class LandInsConfig:
     boresight_rw: float = 1e-7
     lever_rw: float = 1e-5
     states: int = 20
+    turn_coherence_rad: float | None = None
 
 
 def state_index(cfg: LandInsConfig, grade: GradeErrors) -> np.ndarray:
@@ -233,6 +236,14 @@ def error_dynamics(c_bn: np.ndarray, f_n: np.ndarray, v_n: np.ndarray, lat, h,
     columns are zero. Each Gauss-Markov rung of the bias instability enters like the biases (``C_b^n δβ``)
     and decays, ``δβ̇ = -δβ / T + w``, ``E[w²] = 2 σ² / T``. A filter uses the rows and columns of
     :func:`state_index`.
+
+    With ``cfg.turn_coherence_rad`` = θ_c and fewer than 29 states, the gyro's scale factor and misalignment
+    (the grade's sigmas Σ_s, not states) turn the rate over the Earth ``ω = ω_ib - C_n^b ω_ie`` into attitude
+    error, ``C W(ω) δs``: a random constant, whose error over a turn of angle θ at rate |ω| has the variance
+    ``C W Σ_s Wᵀ Cᵀ θ² / |ω|²``. As white attitude noise of density ``C W Σ_s Wᵀ Cᵀ θ_c / |ω|`` it has that
+    variance after a turn of θ_c; beyond it the noise form grows as θ where the constant's error is
+    bounded (a full turn brings it back), so θ_c is meant for the turns of a pre-calibration, not for an
+    hour of constant turning (docs/navigation.md).
     """
     lat, h = np.asarray(lat, float), np.asarray(h, float)
     shape = lat.shape
@@ -271,9 +282,17 @@ def error_dynamics(c_bn: np.ndarray, f_n: np.ndarray, v_n: np.ndarray, lat, h,
     qd[LA] = cfg.lever_rw ** 2
     qd[GG] = (2.0 * grade.gyro_gm_sigma ** 2 / grade.gyro_gm_tau).ravel()
     qd[GA] = (2.0 * grade.accel_gm_sigma ** 2 / grade.accel_gm_tau).ravel()
+    turn = 0.0
+    if omega_b is not None and cfg.turn_coherence_rad is not None and cfg.states < SG.stop:
+        w_nb = np.asarray(omega_b, float) - np.einsum("...ji,...j->...i", c_bn, w_ie)
+        rate = np.linalg.norm(w_nb, axis=-1)
+        cw = c_bn @ scale_columns(w_nb)
+        var_s = np.concatenate([grade.gyro_scale, np.repeat(grade.gyro_misalignment, 2)]) ** 2
+        coherence = np.divide(cfg.turn_coherence_rad, rate, out=np.zeros_like(rate), where=rate > 0)
+        turn = (cw * var_s) @ np.swapaxes(cw, -1, -2) * coherence[..., None, None]
     gqg = np.zeros(shape + (N_STATES, N_STATES))
     gqg[..., V_, V_] = (c_bn * qd[V_]) @ np.swapaxes(c_bn, -1, -2)  # C diag(q) Cᵀ
-    gqg[..., A_, A_] = (c_bn * qd[A_]) @ np.swapaxes(c_bn, -1, -2)
+    gqg[..., A_, A_] = (c_bn * qd[A_]) @ np.swapaxes(c_bn, -1, -2) + turn
     idx = np.r_[9:20, 38:N_STATES]  # the scale-factor states are random constants (no process noise)
     gqg[..., idx, idx] = qd[idx]
     return F, gqg
