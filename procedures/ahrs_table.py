@@ -90,8 +90,9 @@ def sequence(spec, **options) -> Sequence:
     if len(rates) != 2 or not all(isinstance(r, (int, float)) and not isinstance(r, bool) and r != 0 for r in rates):
         raise ProcedureError(f"{NAME}: rates_dps={rates!r} (deg/s) must be two non-zero rates (out, back)")
     mounts = o["mounts"]
-    if not mounts or not all(isinstance(m, (list, tuple)) and len(m) == 2 for m in mounts):
-        raise ProcedureError(f"{NAME}: mounts={mounts!r} (deg) must be a list of [roll, pitch] pairs")
+    if not mounts or not all(isinstance(m, (list, tuple)) and len(m) == 2 and all(
+            isinstance(a, (int, float)) and not isinstance(a, bool) and abs(a) <= 180 for a in m) for m in mounts):
+        raise ProcedureError(f"{NAME}: mounts={mounts!r} (deg) must be a list of [roll, pitch] pairs, each within ±180")
     r1, r2 = (float(np.radians(r)) for r in rates)
     steps = []
     for roll, pitch in o["mounts"]:

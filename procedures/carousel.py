@@ -23,7 +23,7 @@ TRIADS = ("gyro",)
 CAMPAIGN_ORDER = None
 OPTIONS = (
     Option("rate_deg_s", "sequence", "float", 10.0, "table rate (clockwise if > 0; non-zero)", unit="deg/s"),
-    Option("laps", "sequence", "int", 10, "whole laps", ge=1),
+    Option("laps", "sequence", "int", 10, "whole laps", ge=1, le=1000),
     _northfinding.START_OFFSET,
     _northfinding.MOUNT,
     _northfinding.settle_option(0.0),

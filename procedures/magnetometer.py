@@ -44,7 +44,7 @@ OPTIONS = (
            "fixture tilts [roll, pitch] of the level z-down mount", unit="deg"),
     Option("mode", "sequence", "str", "steps", "static yaw steps or one continuous revolution per tilt",
            choices=("steps", "continuous")),
-    Option("yaw_steps", "sequence", "int", 12, "static holds per tilt (mode steps)", ge=3),
+    Option("yaw_steps", "sequence", "int", 12, "static holds per tilt (mode steps)", ge=3, le=3600),
     Option("dwell_s", "sequence", "float", 5.0, "hold per yaw step", unit="s", gt=0),
     Option("rate_dps", "sequence", "float", 10.0, "rate of the revolution (mode continuous)", unit="deg/s"),
     Option("method", "analysis", "str", "auto", "estimator ('auto' chooses and says why)", choices=METHODS),

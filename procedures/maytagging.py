@@ -29,7 +29,7 @@ TRIADS = ("gyro",)
 CAMPAIGN_ORDER = 60
 OPTIONS = (
     Option("dwell_s", "sequence", "float", 60.0, "hold per position", unit="s", gt=0),
-    Option("count", "sequence", "int", 40, "pairs of positions (even for ABBA)", ge=1),
+    Option("count", "sequence", "int", 40, "pairs of positions (even for ABBA)", ge=1, le=10000),
     Option("ordering", "sequence", "str", "ABAB", "ABAB: an index per dwell; ABBA: each position held two dwells",
            choices=("ABAB", "ABBA")),
     _northfinding.START_OFFSET,

@@ -23,7 +23,7 @@ TRIADS = ("gyro",)
 CAMPAIGN_ORDER = None
 OPTIONS = (
     Option("dwell_s", "sequence", "float", 60.0, "hold per 45° position", unit="s", gt=0),
-    Option("turns", "sequence", "int", 10, "turns through the eight positions", ge=1),
+    Option("turns", "sequence", "int", 10, "turns through the eight positions", ge=1, le=1000),
     _northfinding.START_OFFSET,
     _northfinding.MOUNT,
     _northfinding.settle_option(2.0),

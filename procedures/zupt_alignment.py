@@ -68,7 +68,7 @@ OPTIONS = (
     Option("level_s", "analysis", "float", 5.0, "coarse levelling before the EKF", unit="s", gt=0),
     Option("update_interval_s", "analysis", "float", 1.0, "ZUPT correction interval", unit="s", gt=0),
     Option("turns", "sequence", "int", 0, "table turns after each position's hold (each then held dwell_s)",
-           ge=0),
+           ge=0, le=1000),
     Option("turn_deg", "sequence", "float", 90.0, "angle of each turn", unit="deg"),
     Option("zarupt", "analysis", "bool", False, "add the zero angular rate update"),
     Option("heading_source", "analysis", "str", "external", "external: the table's heading; gyrocompass: none "

@@ -208,6 +208,14 @@ def test_an_output_folder_under_a_file_is_one_line(db, tmp_path, capsys):
     (["run", "magnetometer", "-o", "tilts_deg=[30]", "--dry-run"], "tilts_deg=[30]: expected [roll, pitch] pairs"),
     (["run", "magnetometer", "-o", 'tilts_deg=[[30, "a"]]', "--dry-run"], "expected [roll, pitch] pairs in degrees"),
     (["run", "magnetometer", "-o", "tilts_deg=[[1e10, 0]]", "--dry-run"], "each within ±180"),
+    (["run", "ahrs-table", "-o", 'mounts=[[1, "a"]]', "--dry-run"], "must be a list of [roll, pitch] pairs"),
+    # counts of turns, laps, pairs and holds are bounded: turns=1e30 built its sequence for ever
+    (["run", "earth-rate", "-o", "turns=1e30", "--dry-run"], "earth-rate: turns=1e+30 must be <= 1000"),
+    (["run", "carousel", "-o", "laps=1e12", "--dry-run"], "carousel: laps=1000000000000.0 must be <= 1000"),
+    (["run", "maytagging", "-o", "count=1e9", "--dry-run"], "maytagging: count=1000000000.0 must be <= 10000"),
+    (["run", "redundant", "-o", "turns=1e9", "--dry-run"], "redundant: turns=1000000000.0 must be <= 1000"),
+    (["run", "magnetometer", "-o", "yaw_steps=1e9", "--dry-run"], "magnetometer: yaw_steps=1000000000.0 must be <= 3600"),
+    (["run", "zupt-alignment", "-o", "turns=1e9", "--dry-run"], "turns=1000000000.0 must be <= 1000"),
 ])
 def test_a_blank_grade_or_rig_name_or_a_bad_hil_setting_says_so(db, capsys, args, match):
     assert main(args) == 2
