@@ -67,8 +67,9 @@ def _highlight(value: float) -> str:
 
 def certificate_section(db, calset, version: int, stem: str) -> None:
     """Render the set's certificate on request (from the store only, as ``workbench certificate``):
-    HTML and, where Chromium is installed, PDF downloads. Kept for the set and its approval state."""
-    from workbench.fleet.certificate import certificate_number, write_certificate
+    HTML and, where Chromium is installed, PDF downloads (a PDF Chromium fails to print is said beside
+    the HTML). Kept for the set and its approval state."""
+    from workbench.fleet.certificate import certificate_number, find_chromium, print_pdf, write_certificate
 
     key = (calset.id, (db.approval(calset.id) or {}).get("approved_at"))
     if st.button("Render the certificate", key="cal.cert"):
@@ -78,10 +79,15 @@ def certificate_section(db, calset, version: int, stem: str) -> None:
         try:
             with st.spinner("Rendering the certificate (HTML, then PDF with Chromium) ..."), \
                     tempfile.TemporaryDirectory(prefix="workbench-cert-") as tmp:
-                written = write_certificate(calset, db, Path(tmp) / "certificate.html")  # PDF where Chromium is
-                html = written[0].read_text()
-                pdf = written[1].read_bytes() if len(written) > 1 else None
-            st.session_state["cal.cert.doc"] = (key, html, pdf)
+                out = write_certificate(calset, db, Path(tmp) / "certificate.html", pdf=False)[0]
+                html, pdf, pdf_note = out.read_text(), None, "No Chromium on this machine: HTML only."
+                chromium = find_chromium()
+                if chromium:
+                    try:  # the HTML stands on its own: a PDF that fails is said, not the whole certificate
+                        pdf = print_pdf(out, out.with_suffix(".pdf"), chromium).read_bytes()
+                    except WorkbenchError as exc:
+                        pdf_note = f"PDF not printed ({exc}): HTML only."
+            st.session_state["cal.cert.doc"] = (key, html, pdf, pdf_note)
         except WorkbenchError as exc:
             ui.show_error(exc, "certificate")
     doc = st.session_state.get("cal.cert.doc")
@@ -89,7 +95,7 @@ def certificate_section(db, calset, version: int, stem: str) -> None:
         st.caption("Rendered from the store only: coefficients with U (k = 2), approval, reference equipment, "
                    "ambient conditions, the stored figures.")
         return
-    _, html, pdf = doc
+    _, html, pdf, pdf_note = doc
     st.caption(f"Certificate {certificate_number(calset, version)} rendered"
                + ("" if key[1] else " (a draft: the set is not approved)") + ".")
     c1, c2 = st.columns(2)
@@ -99,7 +105,7 @@ def certificate_section(db, calset, version: int, stem: str) -> None:
         c2.download_button("certificate (.pdf)", pdf, file_name=f"{stem}_certificate.pdf", mime="application/pdf",
                            key="cal.cert.pdf")
     else:
-        c2.caption("No Chromium on this machine: HTML only.")
+        c2.text(pdf_note)  # names a temporary file and Chromium's own words: shown as typed
 
 
 st.title("Calibration sets")

@@ -51,3 +51,22 @@ def test_switching_unit_opens_the_newest_version(seeded_db):
     at.selectbox(key="cal.unit").select("OTHER").run()
     assert not at.exception
     assert at.selectbox(key="cal.version").value == 3
+
+
+def test_certificate_keeps_the_html_when_chromium_fails_to_print(seeded_db, monkeypatch):
+    # a Chromium that times out (a starved machine) must not take the HTML certificate with it
+    from workbench.errors import WorkbenchError
+    from workbench.fleet import certificate
+
+    def stuck(html_path, pdf_path, chromium, timeout_s=120.0):
+        raise WorkbenchError(f"{pdf_path}: Chromium did not print the certificate within {timeout_s:g} s")
+
+    monkeypatch.setattr(certificate, "find_chromium", lambda: "/usr/bin/chromium")
+    monkeypatch.setattr(certificate, "print_pdf", stuck)
+    at = AppTest.from_file(str(PAGE), default_timeout=60).run()
+    at.button(key="cal.cert").click().run()
+    assert not at.exception and not at.error
+    downloads = [e for e in at.get("download_button") if e.proto.label.startswith("certificate")]
+    assert [e.proto.label for e in downloads] == ["certificate (.html)"]
+    notes = [t.value for t in at.text]
+    assert any(n.startswith("PDF not printed (") and "within 120 s" in n and n.endswith("HTML only.") for n in notes), notes

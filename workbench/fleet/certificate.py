@@ -237,13 +237,18 @@ def print_pdf(html_path: Path, pdf_path: Path, chromium: str, timeout_s: float =
     return pdf_path
 
 
+def find_chromium() -> str | None:
+    """The Chromium executable that prints certificates (``chromium`` or ``chromium-browser`` on PATH), or None."""
+    return shutil.which("chromium") or shutil.which("chromium-browser")
+
+
 def write_certificate(cal: CalibrationSet, store, out: Path, pdf: bool = True,
                       progress: Progress | None = None) -> list[Path]:
     """Write ``out`` (HTML) and, where Chromium is installed, the PDF beside it; ``progress(msg)`` per stage."""
     say = progress or (lambda _msg: None)
     t0 = time.monotonic()
     written = [atomic_write_text(out, render_certificate(cal, store, say))]
-    chromium = shutil.which("chromium") or shutil.which("chromium-browser")
+    chromium = find_chromium()
     if pdf and chromium:
         say(f"PDF (HTML in {time.monotonic() - t0:.1f} s)")
         written.append(print_pdf(out, out.with_suffix(".pdf"), chromium))
