@@ -23,7 +23,7 @@ CAMPAIGN_ORDER = None
 OPTIONS = (
     Option("dwell_s", "sequence", "float", 60.0, "hold per position", unit="s", gt=0),
     Option("step_deg", "sequence", "float", 10.0, "index between positions (divides 360° into >= 3)", unit="deg",
-           gt=0),
+           ge=0.1, le=120.0),
     Option("turns", "sequence", "int", 4, "full turns", ge=1, le=1000),
     _northfinding.START_OFFSET,
     _northfinding.MOUNT,
