@@ -48,6 +48,8 @@ DEFAULTS = defaults(OPTIONS)
 
 def rate_set(full_scale: float, rates_fs, max_rate: float) -> list[float]:
     """Positive test rates (rad/s): fractions of ``full_scale`` capped at ``max_rate``, distinct."""
+    if not all(isinstance(f, (int, float)) and not isinstance(f, bool) for f in rates_fs):  # [[1, "a"]]: a TypeError
+        raise ProcedureError(f"{NAME}: rates_fs={rates_fs!r}: expected a list of fractions of full scale")
     rates = sorted({round(float(min(f * full_scale, max_rate)), 12) for f in rates_fs})
     if not rates or rates[0] <= 0:
         raise ProcedureError(f"{NAME}: rates_fs must hold positive fractions of full scale")

@@ -46,7 +46,7 @@ import numpy as np
 from workbench import units
 from workbench.angles import wrap_pi
 from workbench.calset import CalibrationSet
-from workbench.errors import AnalysisError
+from workbench.errors import AnalysisError, ProcedureError
 from workbench.json_values import json_value
 from workbench.nav import zupt
 from workbench.nav.compensate import check_calibration, compensate, imu_samples, process_noise
@@ -96,6 +96,10 @@ def sequence(spec, **options) -> Sequence:
     """A static hold of ``dwell_s`` at each ``[mount, table angle °]`` of ``positions``."""
     o = check_options(NAME, OPTIONS, options, "sequence")
     steps = []
+    if not o["positions"] or not all(isinstance(p, (list, tuple)) and len(p) == 2 and isinstance(p[1], (int, float))
+                                     and not isinstance(p[1], bool) for p in o["positions"]):
+        raise ProcedureError(f"{NAME}: positions={o['positions']!r}: expected [mount, table angle °] pairs, "
+                             "e.g. [[\"z-down\", 0], [\"y-down\", 45]]")
     for mount, angle_deg in o["positions"]:
         mount_matrix(mount)  # raises on an unknown mount
         steps.append(Hold(mount=mount, table_angle=float(np.radians(angle_deg)), dwell_s=float(o["dwell_s"]),

@@ -212,6 +212,9 @@ def test_an_output_folder_under_a_file_is_one_line(db, tmp_path, capsys):
     # counts of turns, laps, pairs and holds are bounded: turns=1e30 built its sequence for ever
     (["run", "earth-rate", "-o", "turns=1e30", "--dry-run"], "earth-rate: turns=1e+30 must be <= 1000"),
     (["run", "earth-rate", "-o", "step_deg=1e-30", "--dry-run"], "earth-rate: step_deg=1e-30 (deg) must be >= 0.1 deg"),
+    (["run", "rate", "-o", 'rates_fs=[[1, "a"]]', "--dry-run"], "rates_fs=[[1, 'a']]: expected a list of fractions"),
+    (["run", "zupt-alignment", "-o", "positions=[30]", "--dry-run"], "positions=[30]: expected [mount, table angle"),
+    (["run", "zupt-alignment", "-o", "positions=[[]]", "--dry-run"], "expected [mount, table angle °] pairs"),
     (["run", "carousel", "-o", "laps=1e12", "--dry-run"], "carousel: laps=1000000000000.0 must be <= 1000"),
     (["run", "maytagging", "-o", "count=1e9", "--dry-run"], "maytagging: count=1000000000.0 must be <= 10000"),
     (["run", "redundant", "-o", "turns=1e9", "--dry-run"], "redundant: turns=1000000000.0 must be <= 1000"),
