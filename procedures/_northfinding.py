@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from workbench.analysis.northfinding import find_north, to_result
+from workbench.errors import ProcedureError
 from workbench.options import Option, check_options
 from workbench.procedure import ProcedureResult
 from workbench.sequence import Hold
@@ -82,7 +83,10 @@ def analyze(name: str, method: str, declared, session: Session, options: dict) -
         kwargs["discard_s"] = o["discard_s"] if "discard_s" in o.given else \
             float(session.options.get("discard_s", o["discard_s"]))
     if "bias" in kwargs:
-        kwargs["bias"] = np.asarray(kwargs["bias"], float)
+        b = kwargs["bias"]
+        if len(b) != 3 or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in b):
+            raise ProcedureError(f"{name}: bias={b!r}: expected the 3 known gyro biases (x, y, z)")
+        kwargs["bias"] = np.asarray(b, float)
     kwargs["grade"] = grade_spec(session, kwargs.get("grade"))
     nf = find_north(session, method, **kwargs)
     result, summary = to_result(nf)

@@ -226,6 +226,18 @@ def test_a_blank_grade_or_rig_name_or_a_bad_hil_setting_says_so(db, capsys, args
     assert match in _one_line(capsys)  # were '.../fixtures/units/.yaml: no such ...' and '.: no such ...'
 
 
+@pytest.mark.parametrize("bias", ['[[1, "a"]]', "[1, 2]"])
+def test_a_north_finding_bias_that_is_not_three_numbers_is_one_line(db, tmp_path, capsys, bias):
+    from workbench.grades import load_spec
+    from workbench.jobs import simulate
+    from workbench.registry import procedure
+
+    simulate(procedure("maytagging").sequence(load_spec("industrial_mems"), count=4, dwell_s=5.0), "industrial_mems",
+             1, tmp_path / "s", procedure="maytagging")
+    assert main(["analyze", "maytagging", str(tmp_path / "s"), "--no-store", "-o", f"bias={bias}"]) == 2
+    assert "maytagging: bias=" in _one_line(capsys)  # [[1, "a"]] was a ValueError traceback
+
+
 def test_an_empty_set_reference_says_so(db, capsys):
     """Was '.: cannot read (Is a directory)': an empty argument read as the current folder."""
     assert main(["sets", "show", ""]) == 2
