@@ -328,3 +328,24 @@ def test_sections_that_overlap_or_reach_past_the_recording_are_one_line(tmp_path
     assert main(["import", str(p), str(tmp_path / "rec.csv"), "--out", str(tmp_path / "s")]) == 2
     (line,) = capsys.readouterr().err.strip().splitlines()
     assert match in line and not (tmp_path / "s").exists()
+
+
+def test_a_ros1_bag_cut_short_is_one_line_saying_how_to_rebuild_it(tmp_path, capsys):
+    from rosbags.rosbag1 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    ts = get_typestore(Stores.ROS1_NOETIC)
+    (tmp_path / "d").mkdir()
+    with Writer(tmp_path / "full.bag") as w:
+        ci = w.add_connection("/imu/data", "sensor_msgs/msg/Imu", typestore=ts)
+        for t_ns, imu, _ in _ros_messages(ts):
+            w.write(ci, t_ns, ts.serialize_ros1(imu, "sensor_msgs/msg/Imu"))
+    data = (tmp_path / "full.bag").read_bytes()
+    (tmp_path / "d" / "run.bag").write_bytes(data[:len(data) - 7])  # the index at the end is cut
+    p = tmp_path / "p.yaml"
+    streams = _ros_streams("run.bag")
+    del streams["streams"]["mag"]
+    p.write_text(yaml.safe_dump({"format": "workbench-import/1", "site": {"latitude_deg": 45.0}, **streams}))
+    assert main(["import", str(p), str(tmp_path / "d"), "--out", str(tmp_path / "s")]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert "run.bag: not a readable rosbag recording" in line and "'rosbag reindex' rebuilds its index" in line

@@ -161,5 +161,6 @@ def read_log(path: Path, reader: Mapping, where: str) -> tuple[pd.DataFrame, Dam
     except WorkbenchError:
         raise
     except Exception as exc:  # each library raises its own types for files that are not its format
-        raise WorkbenchError(f"{place}: not a readable {kind} recording "
-                             f"({type(exc).__name__}: {str(exc)[:120]})") from None
+        cut = kind == "rosbag" and "index looks damaged" in str(exc)  # a ROS 1 bag whose recorder did not close it
+        raise WorkbenchError(f"{place}: not a readable {kind} recording ({type(exc).__name__}: {str(exc)[:120]})"
+                             + ("; a bag cut short: 'rosbag reindex' rebuilds its index" if cut else "")) from None
