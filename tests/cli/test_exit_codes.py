@@ -267,3 +267,22 @@ def test_allan_taus_holding_text_is_one_line(db, tmp_path, capsys):
 
     with pytest.raises(AnalysisError, match="taus \\[1, 'a'\\]: expected octave, decade, <k>-per-decade or a list"):
         averaging_factors(1000, [1, "a"], 100.0)
+
+
+@pytest.mark.parametrize("args,match", [
+    # multiposition recorded its whole sequence, then its analysis refused the unknown option 'calibration'
+    (["run", "multiposition", "--calibration", "any.json"],
+     "multiposition: --calibration is for validations; multiposition takes none"),
+    (["run", "campaign", "--calibration", "any.json", "--dry-run"],
+     "campaign: --calibration is for validations; a campaign produces the calibration"),
+    # a dry run of a validation read nothing: an empty or unknown set passed as 'within the limits'
+    (["run", "ahrs-table", "--calibration", "", "--dry-run"], "empty set reference"),
+    (["run", "ahrs-table", "--calibration", "nosuch", "--dry-run"], "set 'nosuch' is not in the store"),
+    (["run", "lns-dead-reckoning", "--unit", "quasi_tactical", "--calibration", "nosuch", "--dry-run"],
+     "set 'nosuch' is not in the store"),
+])
+def test_calibration_is_read_before_anything_is_recorded(db, tmp_path, monkeypatch, capsys, args, match):
+    monkeypatch.chdir(tmp_path)
+    assert main(args) == 2
+    assert match in _one_line(capsys)
+    assert not (tmp_path / "runs").exists()  # nothing recorded

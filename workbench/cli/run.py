@@ -127,9 +127,15 @@ def print_forced(cal) -> None:
                   soft_wrap=True)
 
 
-def _load_calibration(ref: str | None):
+def _load_calibration(ref: str | None, proc=None):
+    """The set ``--calibration`` names (None without one), read before anything is recorded: a procedure
+    ``proc`` whose analysis takes no calibration (not a validation) refuses it, so a mistyped command
+    is one line before the rig moves, not after the recording."""
     if ref is None:
         return None
+    if proc is not None and not _needs_cal(proc):
+        raise ProcedureError(f"{proc.NAME}: --calibration is for validations; {proc.NAME} takes none "
+                             "(it produces a calibration)")
     from workbench.cli.sets import load_set_ref
 
     return load_set_ref(ref)
@@ -195,6 +201,8 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
     cfg = load_rig_config(rig)
     truth = draw_unit(spec, seed, serial=serial)
     if procedure_name == "campaign":
+        if calibration is not None:
+            raise ProcedureError("campaign: --calibration is for validations; a campaign produces the calibration")
         campaign_options = _campaign_options(parse_options(option))
         out_dir = out_dir or _default_out("campaign", truth.serial)
         out.print(f"campaign for {truth.serial} ({spec.name}) on {cfg.name}, seed {seed} -> {out_dir}", soft_wrap=True)
@@ -224,6 +232,7 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
         _run_drive(proc, spec, truth, cfg, seed, out_dir, options, store, calibration, dry_run, not no_figures, force)
         return
     seq_options, analysis_options = split(proc, options)  # refuses a misspelt option before anything runs
+    cal = _load_calibration(calibration, proc)
     seq = proc.sequence(spec, **seq_options)
     _print_sequence(seq)
     # the limits the rig checks before anything moves, checked before the progress bar starts
@@ -232,7 +241,6 @@ def run(procedure_name: str = typer.Argument(..., metavar="PROCEDURE", help="A p
         out.print(f"within the limits of rig {cfg.name}")
         return
     out_dir = out_dir or _default_out(proc.NAME, truth.serial)
-    cal = _load_calibration(calibration)
     if cal is None and _needs_cal(proc):
         cal = _calibrate_first(spec, truth, cfg, seed, out_dir)
     with _interruptible(out_dir / "session", proc.NAME), _progress_bar() as bar:
@@ -282,11 +290,11 @@ def _run_drive(proc, spec, truth, cfg, seed: int, out_dir: Path | None, options:
     seq_options, analysis_options = split(proc, options)  # refuses a misspelt option before anything runs
     if cfg.driver != "sim":
         raise ProcedureError(f"{proc.NAME}: a drive is simulated (--rig sim) or imported (workbench analyze)")
+    cal = _load_calibration(calibration, proc)
     out.print(f"{proc.NAME}: simulated drive of {truth.serial} ({spec.name}), seed {seed}")
     if dry_run:
         return
     out_dir = out_dir or _default_out(proc.NAME, truth.serial)
-    cal = _load_calibration(calibration)
     if cal is None:
         cal = _calibrate_first(spec, truth, cfg, seed, out_dir)
     session = proc.record_drive(truth, seed, out_dir / "session", **seq_options)
@@ -319,7 +327,7 @@ def _analyse_and_report(proc, session, out_dir: Path, store, calibration, analys
 
     options = dict(analysis_options or {})  # checked again by the procedure's analyze()
     if calibration is not None:
-        options["calibration"] = _load_calibration(calibration) if isinstance(calibration, str) else calibration
+        options["calibration"] = _load_calibration(calibration, proc) if isinstance(calibration, str) else calibration
     result = run_analysis(proc, session, options, out_dir, store, figures, force)
     _print_result(result, out_dir)
     if result.calibration is not None:
@@ -346,9 +354,10 @@ def analyze(procedure_name: str = typer.Argument(..., metavar="PROCEDURE"),
     proc = procedure(procedure_name)
     options = parse_options(option)
     validate(proc, options)  # a misspelt option is refused before the session is read
+    cal = _load_calibration(calibration, proc)
     session = load_session(session_dir)
-    if calibration is not None:
-        options["calibration"] = _load_calibration(calibration)
+    if cal is not None:
+        options["calibration"] = cal
     result = run_analysis(proc, session, options, figures, None if no_store else Store(), not no_figures, force)
     if out_file is not None:
         from workbench.calset import atomic_write_text
