@@ -127,13 +127,13 @@ def print_forced(cal) -> None:
                   soft_wrap=True)
 
 
-def _load_calibration(ref: str | None, proc=None):
+def _load_calibration(ref: str | None, proc):
     """The set ``--calibration`` names (None without one), read before anything is recorded: a procedure
     ``proc`` whose analysis takes no calibration (not a validation) refuses it, so a mistyped command
     is one line before the rig moves, not after the recording."""
     if ref is None:
         return None
-    if proc is not None and not _needs_cal(proc):
+    if not _needs_cal(proc):
         raise ProcedureError(f"{proc.NAME}: --calibration is for validations; {proc.NAME} takes none "
                              "(it produces a calibration)")
     from workbench.cli.sets import load_set_ref
