@@ -152,9 +152,18 @@ def recorded_analysis_options(session: Session | Path) -> dict:
 
 
 def resume_procedure(out_dir: Path, progress: Progress | None = None) -> Session:
-    """Continue an interrupted recording from its first incomplete step."""
+    """Continue an interrupted recording from its first incomplete step.
+
+    A recording that had completed (the run was interrupted in its analysis, after the last step
+    reached the disk) is returned as it is, so the resume hint finishes the job: it is analysed.
+    """
     from workbench.grades import UnitTruth
 
+    manifest = Path(out_dir) / "session.json"
+    if manifest.exists() and json.loads(manifest.read_text()).get("complete"):
+        from workbench.session import load_session
+
+        return load_session(out_dir)
     rec = reopen(out_dir)
     m = rec.manifest
     cfg = load_rig_config(m.get("rig_config") or "sim")

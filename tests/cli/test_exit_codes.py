@@ -286,3 +286,14 @@ def test_calibration_is_read_before_anything_is_recorded(db, tmp_path, monkeypat
     assert main(args) == 2
     assert match in _one_line(capsys)
     assert not (tmp_path / "runs").exists()  # nothing recorded
+
+
+def test_resume_of_a_recording_interrupted_in_its_analysis_analyses_it(db, tmp_path):
+    """Ctrl-C after the last step reached the disk (during the analysis) prints the resume hint; the
+    hint must finish the job, not answer 'the session is already complete' (exit 2, as CI once saw)."""
+    out = tmp_path / "mp"
+    assert main(["run", "multiposition", "--out", str(out), "-o", "dwell_s=2", "--no-store"]) == 0
+    (out / "result.json").unlink()  # as if interrupted before the analysis wrote it
+    assert json.loads((out / "session" / "session.json").read_text())["complete"]
+    assert main(["run", "multiposition", "--resume", str(out / "session"), "--no-store"]) == 0
+    assert (out / "result.json").exists()
